@@ -1,0 +1,26 @@
+# Two set-up commands, both safe on a fresh clone:
+#   make demo   -> creates .venv, installs posicast, writes report/index.html
+#   make test   -> creates .venv if needed, runs the whole suite
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test bench clean venv
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m posicast.demo --out report
+
+test: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m pytest
+
+clean:
+	rm -rf $(VENV) report .pytest_cache

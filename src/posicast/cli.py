@@ -1,0 +1,152 @@
+"""Command line: ``posicast design``, ``posicast sensitivity``, ``posicast kinds``.
+
+Every error (bad argument, out-of-range value) prints one line to stderr and
+exits with status 2; no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from typing import Any, Sequence
+
+__all__ = ["main"]
+
+
+class _OneLineError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> Any:  # argparse prints usage + message; we want one line
+        raise _OneLineError(message)
+
+
+def _add_mode_args(p: argparse.ArgumentParser) -> None:
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--omega", type=float, help="natural frequency [rad/s]")
+    g.add_argument("--freq-hz", type=float, help="natural frequency [Hz]")
+    p.add_argument("--zeta", type=float, required=True, help="damping ratio, 0 <= zeta < 1")
+
+
+def _add_param_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--vtol", type=float, help="tolerable vibration for ei/ei2/ei3, in (0, 1)")
+    p.add_argument("--k", type=int, help="derivative order for zvdk (>= 0)")
+    p.add_argument("--n", type=int, help="impulses for mis_zv / first factor of mis_zvd (>= 2)")
+    p.add_argument("--m", type=int, help="second factor of mis_zvd (>= 2)")
+    p.add_argument("--T", type=float, help="kernel length for dezv/dtzv/dczv/dtazv [s], default pi/omega")
+    p.add_argument("--method", choices=("exact", "singhose", "fit"), help="ei: exact (default), singhose (t3 = T_d) or Singhose's fit")
+
+
+def _build_parser() -> _Parser:
+    parser = _Parser(prog="posicast", description="Time-delay signal shapers for flexible machines.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    d = sub.add_parser("design", help="design a shaper and print it")
+    d.add_argument("kind", help="shaper kind (see 'posicast kinds')")
+    _add_mode_args(d)
+    _add_param_args(d)
+    d.add_argument("--json", action="store_true", help="machine-readable output")
+
+    s = sub.add_parser("sensitivity", help="plot residual vibration against omega/omega_model")
+    s.add_argument("kinds", nargs="+", help="one or more shaper kinds")
+    _add_mode_args(s)
+    _add_param_args(s)
+    s.add_argument("--out", required=True, help="output image (png, pdf, svg)")
+    s.add_argument("--tol", type=float, default=0.05, help="tolerance line and insensitivity level (default 0.05)")
+
+    sub.add_parser("kinds", help="list the shaper kinds")
+    return parser
+
+
+def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
+    from .shapers.design import KINDS
+
+    accepted = KINDS[kind].params if kind in KINDS else {}
+    out = {}
+    for name in ("vtol", "k", "n", "m", "T", "method"):
+        val = getattr(args, name)
+        if val is None:
+            continue
+        if name not in accepted:
+            raise ValueError(f"--{name} does not apply to kind {kind!r}")
+        out[name] = val
+    return out
+
+
+def _mode(args: argparse.Namespace) -> Any:
+    from .modes import Mode
+
+    if args.omega is not None:
+        return Mode(args.omega, args.zeta)
+    return Mode.from_hz(args.freq_hz, args.zeta)
+
+
+def _print_shaper(S: Any) -> None:
+    m = S.modes[0]
+    print(f"{S.name} shaper for omega = {m.omega:.6g} rad/s ({m.freq_hz:.6g} Hz), zeta = {m.zeta:.6g}")
+    if S.params:
+        print("parameters: " + ", ".join(f"{k} = {v:.10g}" if isinstance(v, float) else f"{k} = {v}"
+                                         for k, v in S.params.items()))
+    print(f"{'t [s]':>14}  {'amplitude':>14}")
+    for t, a in zip(*S.impulses):
+        print(f"{t:14.10f}  {a:14.10f}")
+    for p in S.distributed:
+        shapes = " * ".join(f"{k.shape}(T={k.T:.10g})" for k in p.kernels)
+        print(f"distributed: weight {p.weight:.10f} on [{p.delay:.10f}, {p.end:.10f}] s, kernel {shapes}")
+    if S.continuous is not None:
+        print(f"IIR part: {S.continuous}")
+    dur = S.duration
+    print(f"duration: {dur:.10f} s" if math.isfinite(dur) else "duration: infinite (IIR)")
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    args = _build_parser().parse_args(argv)
+    from .shapers.design import KINDS, design
+
+    if args.command == "kinds":
+        for name, spec in KINDS.items():
+            params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
+            print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
+        return 0
+    mode = _mode(args)
+    if args.command == "design":
+        kind = args.kind.lower()
+        S = design(kind, mode, **_params(args, kind))
+        if args.json:
+            print(json.dumps(S.to_dict(), indent=2))
+        else:
+            _print_shaper(S)
+        return 0
+    # sensitivity
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from .analysis import insensitivity, sensitivity_plot
+
+    shapers = [design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
+    ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
+    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
+    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
+    fig.savefig(args.out, dpi=120, bbox_inches="tight")
+    for S in shapers:
+        ins = insensitivity(S, args.tol, reference=ref)
+        print(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``posicast`` command."""
+    try:
+        return _run(argv)
+    except (_OneLineError, ValueError, TypeError, OSError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        print(f"posicast: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

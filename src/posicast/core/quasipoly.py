@@ -1,0 +1,398 @@
+"""Quasi-polynomials ``h(s) = sum_i p_i(s) exp(-s tau_i)`` with real coefficients.
+
+A quasi-polynomial is stored as a coefficient matrix and a delay vector:
+``coeffs[i, k]`` multiplies ``s**k * exp(-s * delays[i])`` (ascending powers, one
+row per distinct delay, delays sorted increasingly).  This is the form the
+spectral tools (root finding, stability) consume, and every operation here is
+exact: products add delays and multiply polynomials, nothing is approximated.
+"""
+
+from __future__ import annotations
+
+from math import factorial
+from typing import Iterable, Sequence
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+__all__ = ["QuasiPolynomial"]
+
+# Two delays closer than this (relative to the largest) are the same delay.
+_DELAY_RTOL = 1e-12
+
+
+def _as_real_matrix(coeffs: object, name: str) -> np.ndarray:
+    try:
+        arr = np.array(coeffs, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be an array of real numbers") from exc
+    if arr.ndim == 1:
+        arr = arr[np.newaxis, :]
+    if arr.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D array (one row per delay), got {arr.ndim}-D")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return arr
+
+
+class QuasiPolynomial:
+    """An exact quasi-polynomial ``h(s) = sum_i p_i(s) exp(-s tau_i)``.
+
+    Parameters
+    ----------
+    coeffs : array_like, shape (m, d + 1)
+        ``coeffs[i, k]`` is the coefficient of ``s**k exp(-s delays[i])``
+        (ascending powers).  A 1-D array is one row.
+    delays : array_like, shape (m,), optional
+        Nonnegative finite delays, default ``[0]``.  Equal delays are merged.
+
+    Examples
+    --------
+    The ZV shaper numerator ``0.5 + 0.5 exp(-s pi)`` is neutral:
+
+    >>> h = QuasiPolynomial([[0.5], [0.5]], [0.0, np.pi])
+    >>> h.kind
+    'neutral'
+    >>> abs(h(1j)) < 1e-15
+    True
+    """
+
+    __slots__ = ("coeffs", "delays")
+
+    coeffs: np.ndarray
+    delays: np.ndarray
+
+    def __init__(self, coeffs: object, delays: object | None = None) -> None:
+        c = _as_real_matrix(coeffs, "coeffs")
+        if delays is None:
+            d = np.zeros(c.shape[0])
+        else:
+            try:
+                d = np.array(delays, dtype=float).reshape(-1)
+            except (TypeError, ValueError) as exc:
+                raise TypeError("delays must be an array of real numbers") from exc
+        if d.shape[0] != c.shape[0]:
+            raise ValueError(
+                f"delays has {d.shape[0]} entries but coeffs has {c.shape[0]} rows"
+            )
+        if not np.all(np.isfinite(d)):
+            raise ValueError("delays must be finite")
+        if np.any(d < 0):
+            raise ValueError(f"delays must be >= 0, got min {d.min():g}")
+        c, d = _canonical(c, d)
+        self.coeffs = c
+        self.delays = d
+        self.coeffs.flags.writeable = False
+        self.delays.flags.writeable = False
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_poly(cls, poly_desc: Sequence[float] | np.ndarray, delay: float = 0.0) -> QuasiPolynomial:
+        """One polynomial (numpy's descending-power convention) times ``exp(-s delay)``."""
+        arr = np.atleast_1d(np.array(poly_desc, dtype=float))
+        return cls(arr[::-1][np.newaxis, :], [delay])
+
+    @classmethod
+    def from_terms(cls, terms: Iterable[tuple[Sequence[float] | float, float]]) -> QuasiPolynomial:
+        """Build from ``[(poly_desc, delay), ...]`` pairs (descending powers)."""
+        rows, delays = [], []
+        for poly, delay in terms:
+            rows.append(np.atleast_1d(np.array(poly, dtype=float))[::-1])
+            delays.append(delay)
+        if not rows:
+            return cls.zero()
+        width = max(len(r) for r in rows)
+        mat = np.zeros((len(rows), width))
+        for i, r in enumerate(rows):
+            mat[i, : len(r)] = r
+        return cls(mat, delays)
+
+    @classmethod
+    def zero(cls) -> QuasiPolynomial:
+        """The identically zero quasi-polynomial."""
+        return cls(np.zeros((1, 1)), [0.0])
+
+    @classmethod
+    def constant(cls, value: float) -> QuasiPolynomial:
+        return cls([[float(value)]], [0.0])
+
+    # ------------------------------------------------------------------ properties
+    @property
+    def is_zero(self) -> bool:
+        """True if the quasi-polynomial is identically zero."""
+        return self.coeffs.shape[0] == 0
+
+    @property
+    def degree(self) -> int:
+        """Highest power of ``s`` (``-1`` for the zero quasi-polynomial)."""
+        return self.coeffs.shape[1] - 1 if not self.is_zero else -1
+
+    @property
+    def has_delays(self) -> bool:
+        """True if some term carries a nonzero delay (after factoring nothing out)."""
+        return bool(np.any(self.delays > 0))
+
+    @property
+    def is_polynomial(self) -> bool:
+        """True if there is a single term: a polynomial times at most one delay."""
+        return self.coeffs.shape[0] <= 1
+
+    def row_degrees(self) -> np.ndarray:
+        """Degree of each row's polynomial."""
+        out = np.empty(self.coeffs.shape[0], dtype=int)
+        for i, row in enumerate(self.coeffs):
+            nz = np.flatnonzero(row)
+            out[i] = nz[-1] if nz.size else -1
+        return out
+
+    @property
+    def kind(self) -> str:
+        """``'polynomial'``, ``'retarded'``, ``'neutral'`` or ``'advanced'``.
+
+        After factoring out the smallest delay, the quasi-polynomial is retarded
+        when only the undelayed term reaches the highest power of ``s``, neutral
+        when a delayed term reaches the same power, advanced when a delayed term
+        has a higher power than the undelayed one.
+        """
+        if self.is_zero:
+            raise ValueError("the zero quasi-polynomial has no kind")
+        if self.coeffs.shape[0] == 1:
+            return "polynomial"
+        deg = self.row_degrees()
+        d0 = deg[0]
+        rest = deg[1:].max()
+        if d0 > rest:
+            return "retarded"
+        if d0 == rest:
+            return "neutral"
+        return "advanced"
+
+    def difference_operator(self) -> QuasiPolynomial:
+        """The associated difference operator of a neutral quasi-polynomial.
+
+        The coefficients of the highest power of ``s`` in each row, normalised by
+        the undelayed one: ``D(s) = 1 + sum_i (c_i / c_0) exp(-s (tau_i - tau_0))``.
+        Its spectrum bounds the high-frequency roots (strong stability).
+        """
+        if self.kind != "neutral":
+            raise ValueError(f"only a neutral quasi-polynomial has a difference operator, this one is {self.kind}")
+        n = self.degree
+        lead = self.coeffs[:, n]
+        keep = lead != 0
+        return QuasiPolynomial((lead[keep] / lead[0])[:, np.newaxis], self.delays[keep] - self.delays[0])
+
+    # ------------------------------------------------------------------ evaluation
+    def __call__(self, s: object) -> np.ndarray | complex:
+        """Evaluate at complex ``s`` (scalar or array, vectorised)."""
+        s_arr = np.asarray(s, dtype=complex)
+        if self.is_zero:
+            out = np.zeros_like(s_arr)
+        else:
+            polys = P.polyval(s_arr, self.coeffs.T)  # shape (m,) + s.shape
+            exps = np.exp(-np.multiply.outer(self.delays, s_arr))
+            out = np.sum(polys * exps, axis=0)
+        return out if np.ndim(s) else complex(out)
+
+    def magnitude_scale(self, s: object) -> np.ndarray:
+        """``sum_i |p_i(s)| |exp(-s tau_i)|`` summed term by term (absolute values).
+
+        Used as the scale against which a computed value is judged to be zero.
+        """
+        s_arr = np.asarray(s, dtype=complex)
+        if self.is_zero:
+            return np.zeros(s_arr.shape)
+        absc = np.abs(self.coeffs)
+        polys = P.polyval(np.abs(s_arr), absc.T)
+        exps = np.abs(np.exp(-np.multiply.outer(self.delays, s_arr)))
+        return np.sum(polys * exps, axis=0)
+
+    def derivative(self, order: int = 1) -> QuasiPolynomial:
+        """Exact derivative: ``d/ds [p(s) e^{-s tau}] = (p'(s) - tau p(s)) e^{-s tau}``."""
+        if order < 0:
+            raise ValueError("order must be >= 0")
+        q = self
+        for _ in range(order):
+            if q.is_zero:
+                return q
+            c = q.coeffs
+            deriv = np.zeros_like(c)
+            if c.shape[1] > 1:
+                deriv[:, :-1] = c[:, 1:] * np.arange(1, c.shape[1])
+            deriv -= q.delays[:, np.newaxis] * c
+            q = QuasiPolynomial(deriv, q.delays)
+        return q
+
+    def taylor(self, s0: complex, order: int) -> tuple[np.ndarray, np.ndarray]:
+        """Taylor coefficients about ``s0`` up to ``order`` and their magnitude scales.
+
+        Returns ``(c, scale)`` with ``h(s0 + h) = sum_k c[k] h**k`` and ``scale[k]``
+        the sum of the absolute values of the contributions to ``c[k]`` (a
+        coefficient far below its scale is a cancellation to zero).
+        """
+        K = order + 1
+        c = np.zeros(K, dtype=complex)
+        scale = np.zeros(K)
+        if self.is_zero:
+            return c, scale
+        s0 = complex(s0)
+        inv_fact = np.array([1.0 / factorial(k) for k in range(K)])
+        for row, tau in zip(self.coeffs, self.delays):
+            # Taylor coefficients of the polynomial about s0: p^{(l)}(s0) / l!
+            pt = np.zeros(K, dtype=complex)
+            pabs = np.zeros(K)  # the same with absolute values: the rounding scale
+            prow = row.astype(float)
+            for l in range(min(K, len(row))):
+                pt[l] = P.polyval(s0, prow) * inv_fact[l]
+                pabs[l] = P.polyval(abs(s0), np.abs(prow)) * inv_fact[l]
+                prow = P.polyder(prow) if len(prow) > 1 else np.zeros(1)
+            et = ((-tau) ** np.arange(K)) * inv_fact  # Taylor of exp(-tau h)
+            e0 = np.exp(-s0 * tau)
+            c += e0 * np.convolve(pt, et)[:K]
+            scale += abs(e0) * np.convolve(pabs, np.abs(et))[:K]
+        return c, scale
+
+    # ------------------------------------------------------------------ algebra
+    def _coerce(self, other: object) -> QuasiPolynomial | None:
+        if isinstance(other, QuasiPolynomial):
+            return other
+        if isinstance(other, (int, float, np.integer, np.floating)):
+            return QuasiPolynomial.constant(float(other))
+        return None
+
+    def __add__(self, other: object) -> QuasiPolynomial:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        if self.is_zero:
+            return o
+        if o.is_zero:
+            return self
+        width = max(self.coeffs.shape[1], o.coeffs.shape[1])
+        a = np.zeros((self.coeffs.shape[0], width))
+        a[:, : self.coeffs.shape[1]] = self.coeffs
+        b = np.zeros((o.coeffs.shape[0], width))
+        b[:, : o.coeffs.shape[1]] = o.coeffs
+        return QuasiPolynomial(np.vstack([a, b]), np.concatenate([self.delays, o.delays]))
+
+    __radd__ = __add__
+
+    def __neg__(self) -> QuasiPolynomial:
+        return QuasiPolynomial(-self.coeffs, self.delays) if not self.is_zero else self
+
+    def __sub__(self, other: object) -> QuasiPolynomial:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return self + (-o)
+
+    def __rsub__(self, other: object) -> QuasiPolynomial:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return o + (-self)
+
+    def __mul__(self, other: object) -> QuasiPolynomial:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        if self.is_zero or o.is_zero:
+            return QuasiPolynomial.zero()
+        rows, delays = [], []
+        for ra, ta in zip(self.coeffs, self.delays):
+            for rb, tb in zip(o.coeffs, o.delays):
+                rows.append(P.polymul(ra, rb))
+                delays.append(ta + tb)
+        width = max(len(r) for r in rows)
+        mat = np.zeros((len(rows), width))
+        for i, r in enumerate(rows):
+            mat[i, : len(r)] = r
+        return QuasiPolynomial(mat, delays)
+
+    __rmul__ = __mul__
+
+    def shift(self, delay: float) -> QuasiPolynomial:
+        """Multiply by ``exp(-s delay)`` (``delay >= 0``)."""
+        if delay < 0:
+            raise ValueError(f"delay must be >= 0, got {delay:g}")
+        return QuasiPolynomial(self.coeffs, self.delays + delay) if not self.is_zero else self
+
+    def factor_min_delay(self) -> tuple[QuasiPolynomial, float]:
+        """Return ``(q, tau_min)`` with ``self = q * exp(-s tau_min)`` and ``q`` undelayed in its first row."""
+        if self.is_zero or self.delays[0] == 0:
+            return self, 0.0
+        tau0 = float(self.delays[0])
+        return QuasiPolynomial(self.coeffs, self.delays - tau0), tau0
+
+    def scaled(self, factor: float) -> QuasiPolynomial:
+        return QuasiPolynomial(self.coeffs * factor, self.delays) if not self.is_zero else self
+
+    def equals(self, other: QuasiPolynomial, rtol: float = 1e-12) -> bool:
+        """Structural equality up to a relative tolerance on coefficients and delays."""
+        if self.coeffs.shape != other.coeffs.shape:
+            return False
+        if self.is_zero:
+            return True
+        scale = max(np.abs(self.coeffs).max(), np.abs(other.coeffs).max())
+        return bool(
+            np.allclose(self.delays, other.delays, rtol=rtol, atol=rtol * max(1.0, self.delays.max()))
+            and np.allclose(self.coeffs, other.coeffs, rtol=0, atol=rtol * scale)
+        )
+
+    # ------------------------------------------------------------------ display
+    def __repr__(self) -> str:
+        return f"QuasiPolynomial({self})"
+
+    def __str__(self) -> str:
+        if self.is_zero:
+            return "0"
+        parts = []
+        for row, tau in zip(self.coeffs, self.delays):
+            poly = _poly_str(row)
+            if tau == 0:
+                parts.append(poly)
+            else:
+                parts.append(f"({poly})*exp(-{tau:.6g}*s)")
+        return " + ".join(parts)
+
+
+def _poly_str(row: np.ndarray) -> str:
+    terms = []
+    for k in range(len(row) - 1, -1, -1):
+        c = row[k]
+        if c == 0:
+            continue
+        if k == 0:
+            terms.append(f"{c:.6g}")
+        elif k == 1:
+            terms.append(f"{c:.6g}*s")
+        else:
+            terms.append(f"{c:.6g}*s^{k}")
+    return " + ".join(terms) if terms else "0"
+
+
+def _canonical(c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sort by delay, merge equal delays, drop zero rows, trim high zero powers."""
+    if c.shape[0] == 0:
+        return np.zeros((0, 1)), np.zeros(0)
+    order = np.argsort(d, kind="stable")
+    c = c[order]
+    d = d[order]
+    tol = _DELAY_RTOL * max(1.0, float(d[-1]))
+    merged_c = [c[0].copy()]
+    merged_d = [d[0]]
+    for row, tau in zip(c[1:], d[1:]):
+        if tau - merged_d[-1] <= tol:
+            merged_c[-1] += row
+        else:
+            merged_c.append(row.copy())
+            merged_d.append(tau)
+    mc = np.array(merged_c)
+    md = np.array(merged_d)
+    keep = np.any(mc != 0, axis=1)
+    mc = mc[keep]
+    md = md[keep]
+    if mc.shape[0] == 0:
+        return np.zeros((0, 1)), np.zeros(0)
+    nz_cols = np.flatnonzero(np.any(mc != 0, axis=0))
+    mc = mc[:, : nz_cols[-1] + 1]
+    return mc, md

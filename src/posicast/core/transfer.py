@@ -1,0 +1,398 @@
+"""Exact quasi-rational transfer functions ``H(s) = N(s) / D(s)``.
+
+``N`` and ``D`` are :class:`~posicast.core.quasipoly.QuasiPolynomial` objects, so
+``H`` may contain any number of lumped delays in numerator and denominator.
+Series, parallel, feedback and inverse are carried out on ``N`` and ``D``
+directly: there is no Padé or other approximation anywhere.
+
+Evaluation handles removable singularities such as ``(1 - exp(-sT)) / (sT)`` at
+``s = 0``: near ``s = 0`` and near the roots of a delay-free denominator, ``N``
+and ``D`` are expanded in exact Taylor series, coefficients that cancel to zero
+are removed, and the ratio of the remaining series is taken.  At a common root
+elsewhere the ratio of the first nonvanishing derivatives is used (l'Hôpital).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .quasipoly import QuasiPolynomial
+
+__all__ = ["TransferFunction", "as_transfer", "delay"]
+
+_TAYLOR_ORDER = 24
+_CANCEL_RTOL = 1e-11  # a Taylor coefficient below this fraction of its scale is zero
+_ZERO_RTOL = 1e-13  # a value below this fraction of its term scale is zero
+
+
+class TransferFunction:
+    """An exact quasi-rational transfer function ``H(s) = N(s) / D(s)``.
+
+    Parameters
+    ----------
+    num, den : QuasiPolynomial
+        Numerator and denominator.  ``den`` must not be identically zero.
+
+    Examples
+    --------
+    A PD controller in series with a pure delay, closed in unit feedback:
+
+    >>> C = TransferFunction.from_poly([10.0, 10.0], [1.0])
+    >>> G = TransferFunction.from_poly([1.0], [1.0, 1.0, 0.0]) * delay(0.1)
+    >>> T = (C * G).feedback()
+    >>> abs(T(0) - 1.0) < 1e-12            # integrator in the loop: unit DC gain
+    True
+    >>> T.den.kind
+    'retarded'
+
+    Removable singularities evaluate to their limit:
+
+    >>> S = TransferFunction(QuasiPolynomial([[1.0], [-1.0]], [0.0, 2.0]),
+    ...                      QuasiPolynomial([[0.0, 2.0]]))
+    >>> S(0.0)
+    (1+0j)
+    """
+
+    __slots__ = ("num", "den", "_expansion_points")
+
+    num: QuasiPolynomial
+    den: QuasiPolynomial
+
+    def __init__(self, num: QuasiPolynomial, den: QuasiPolynomial) -> None:
+        if not isinstance(num, QuasiPolynomial) or not isinstance(den, QuasiPolynomial):
+            raise TypeError("num and den must be QuasiPolynomial instances")
+        if den.is_zero:
+            raise ValueError("den must not be identically zero")
+        self.num = num
+        self.den = den
+        self._expansion_points: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def from_poly(cls, num_desc: Any, den_desc: Any, delay: float = 0.0) -> TransferFunction:
+        """Rational ``num/den`` (numpy descending-power coefficients) times ``exp(-s delay)``."""
+        num = np.atleast_1d(np.array(num_desc, dtype=float))
+        den = np.atleast_1d(np.array(den_desc, dtype=float))
+        for name, arr in (("num", num), ("den", den)):
+            if arr.ndim != 1:
+                raise ValueError(f"{name} must be a 1-D coefficient array, got shape {arr.shape}")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} coefficients must be finite")
+        if not np.any(den != 0):
+            raise ValueError("den must not be identically zero")
+        if not (np.isfinite(delay) and delay >= 0):
+            raise ValueError(f"delay must be finite and >= 0, got {delay!r}")
+        return cls(QuasiPolynomial.from_poly(num, delay), QuasiPolynomial.from_poly(den))
+
+    @classmethod
+    def constant(cls, value: float) -> TransferFunction:
+        return cls(QuasiPolynomial.constant(value), QuasiPolynomial.constant(1.0))
+
+    # ------------------------------------------------------------------ inspection
+    @property
+    def has_delays(self) -> bool:
+        """True if numerator or denominator contains a delay."""
+        return self.num.has_delays or self.den.has_delays
+
+    @property
+    def max_delay(self) -> float:
+        d = [q.delays.max() for q in (self.num, self.den) if not q.is_zero]
+        return float(max(d)) if d else 0.0
+
+    def is_rational(self) -> bool:
+        """True if ``H`` is a rational function (after cancelling a common delay, at most a pure delay on top)."""
+        return self.num.is_polynomial and self.den.is_polynomial
+
+    def __repr__(self) -> str:
+        return f"TransferFunction(num={self.num}, den={self.den})"
+
+    # ------------------------------------------------------------------ evaluation
+    def _points(self) -> np.ndarray:
+        """Points about which evaluation uses Taylor series: 0 and delay-free denominator roots."""
+        if self._expansion_points is None:
+            pts = [0.0 + 0.0j]
+            den = self.den
+            if den.is_polynomial and den.degree >= 1:
+                poly = den.coeffs[0][::-1]
+                roots = np.roots(poly)
+                for r in roots:
+                    if abs(r) > 0 and abs(self.num(r)) <= 1e-8 * max(1.0, float(self.num.magnitude_scale(r))):
+                        pts.append(complex(r))
+            self._expansion_points = np.array(pts, dtype=complex)
+        return self._expansion_points
+
+    def __call__(self, s: Any) -> Any:
+        """Evaluate ``H(s)`` at complex ``s`` (scalar or array).  Poles give ``inf``."""
+        s_arr = np.asarray(s, dtype=complex)
+        flat = s_arr.reshape(-1)
+        N = np.atleast_1d(self.num(flat))
+        D = np.atleast_1d(self.den(flat))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = N / D
+        # Taylor expansion near 0 and near removable roots of a polynomial denominator.
+        tau = self.max_delay
+        for s0 in self._points():
+            # The 24-term series is exact to rounding for |h| tau <= 0.5; direct evaluation
+            # of a cancelling N/D loses ~eps/|h tau|^k there, so the series is used.
+            radius = 0.5 / max(tau, 1.0 / (1.0 + abs(s0)))
+            near = np.abs(flat - s0) <= radius
+            if np.any(near):
+                out[near] = self._taylor_ratio(s0, flat[near] - s0)
+        # Remaining 0/0 points: l'Hopital with exact derivatives.
+        bad = ~np.isfinite(out)
+        if np.any(bad):
+            for idx in np.flatnonzero(bad):
+                out[idx] = self._limit_at(flat[idx])
+        out = out.reshape(s_arr.shape)
+        return out if np.ndim(s) else complex(out)
+
+    def _taylor_ratio(self, s0: complex, h: np.ndarray) -> np.ndarray:
+        cn, sn = self.num.taylor(s0, _TAYLOR_ORDER)
+        cd, sd = self.den.taylor(s0, _TAYLOR_ORDER)
+        cn = np.where(np.abs(cn) <= _CANCEL_RTOL * sn, 0.0, cn)
+        cd = np.where(np.abs(cd) <= _CANCEL_RTOL * sd, 0.0, cd)
+        kn = np.flatnonzero(cn)
+        kd = np.flatnonzero(cd)
+        if kd.size == 0:  # denominator vanishes to high order: treat as a pole
+            return np.full(h.shape, complex(np.inf))
+        k0 = min(kd[0], kn[0]) if kn.size else kd[0]
+        cn = cn[k0:]
+        cd = cd[k0:]
+        num = np.polynomial.polynomial.polyval(h, cn)
+        den = np.polynomial.polynomial.polyval(h, cd)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out = num / den
+        out[~np.isfinite(out)] = complex(np.inf)
+        return out
+
+    def _limit_at(self, s0: complex) -> complex:
+        n, d = self.num, self.den
+        for _ in range(_TAYLOR_ORDER):
+            dv = d(s0)
+            nv = n(s0)
+            d_small = abs(dv) <= _ZERO_RTOL * float(d.magnitude_scale(s0)) or dv == 0
+            n_small = abs(nv) <= _ZERO_RTOL * float(n.magnitude_scale(s0)) or nv == 0
+            if not d_small:
+                return complex(nv / dv)
+            if not n_small:
+                return complex(np.inf)
+            n, d = n.derivative(), d.derivative()
+        return complex(np.inf)
+
+    def freqresp(self, omega: Any) -> np.ndarray:
+        """Frequency response ``H(j omega)`` for real ``omega`` (rad/s)."""
+        w = np.asarray(omega, dtype=float)
+        if not np.all(np.isfinite(w)):
+            raise ValueError("omega must be finite")
+        return np.asarray(self(1j * w))
+
+    def dc_gain(self) -> float:
+        """``H(0)`` as a real number (``inf`` for a pole at 0)."""
+        v = self(0.0)
+        return float(v.real) if np.isfinite(v) else float("inf")
+
+    # ------------------------------------------------------------------ algebra
+    @staticmethod
+    def _coerce(other: Any) -> TransferFunction | None:
+        if isinstance(other, TransferFunction):
+            return other
+        if isinstance(other, (int, float, np.integer, np.floating)):
+            return TransferFunction.constant(float(other))
+        if hasattr(other, "transfer") and isinstance(getattr(other, "transfer"), TransferFunction):
+            return other.transfer  # a Shaper
+        return None
+
+    def __mul__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return TransferFunction(self.num * o.num, self.den * o.den)
+
+    def __rmul__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return o * self
+
+    def series(self, *others: Any) -> TransferFunction:
+        """Series connection ``self * others[0] * ...``."""
+        out = self
+        for o in others:
+            out = out * as_transfer(o)
+        return out
+
+    def __add__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        if self.den.equals(o.den):
+            return TransferFunction(self.num + o.num, self.den)
+        return TransferFunction(self.num * o.den + o.num * self.den, self.den * o.den)
+
+    __radd__ = __add__
+
+    def parallel(self, *others: Any) -> TransferFunction:
+        """Parallel connection ``self + others[0] + ...``."""
+        out = self
+        for o in others:
+            out = out + as_transfer(o)
+        return out
+
+    def __neg__(self) -> TransferFunction:
+        return TransferFunction(-self.num, self.den)
+
+    def __sub__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return self + (-o)
+
+    def __rsub__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return o + (-self)
+
+    def inverse(self) -> TransferFunction:
+        """``1 / H`` (exact: numerator and denominator swap)."""
+        if self.num.is_zero:
+            raise ZeroDivisionError("cannot invert a zero transfer function")
+        return TransferFunction(self.den, self.num)
+
+    def __truediv__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return self * o.inverse()
+
+    def __rtruediv__(self, other: Any) -> TransferFunction:
+        o = self._coerce(other)
+        if o is None:
+            return NotImplemented
+        return o * self.inverse()
+
+    def feedback(self, other: Any = 1.0, sign: int = -1) -> TransferFunction:
+        """Closed loop ``H / (1 - sign * H * K)`` with ``K = other`` in the feedback path.
+
+        ``sign=-1`` (default) is negative feedback.  Exact:
+        ``N_H D_K / (D_H D_K - sign N_H N_K)``.
+        """
+        if sign not in (-1, 1):
+            raise ValueError(f"sign must be -1 or +1, got {sign!r}")
+        k = as_transfer(other)
+        num = self.num * k.den
+        den = self.den * k.den - (self.num * k.num).scaled(float(sign))
+        if den.is_zero:
+            raise ZeroDivisionError("the closed loop has an identically zero characteristic function")
+        return TransferFunction(num, den)
+
+    # ------------------------------------------------------------------ conversion
+    def to_scipy(self) -> Any:
+        """Return a ``scipy.signal.TransferFunction`` (only for delay-free ``H``)."""
+        from scipy import signal
+
+        num, den = self._rational_desc()
+        return signal.TransferFunction(num, den)
+
+    def to_control(self) -> Any:
+        """Return a python-control ``TransferFunction`` (only for delay-free ``H``).
+
+        python-control is imported here, and only here.
+        """
+        try:
+            import control  # noqa: PLC0415 - optional dependency
+        except ImportError as exc:  # pragma: no cover - depends on environment
+            raise ImportError("to_control() needs python-control: pip install control") from exc
+        num, den = self._rational_desc()
+        return control.TransferFunction(num, den)
+
+    def _rational_desc(self) -> tuple[np.ndarray, np.ndarray]:
+        num, tn = self.num.factor_min_delay()
+        den, td = self.den.factor_min_delay()
+        if not (num.is_polynomial and den.is_polynomial) or (tn - td) != 0:
+            raise ValueError(
+                "this transfer function contains delays; only a delay-free one converts to a rational "
+                "model (posicast never approximates a delay)"
+            )
+        n = num.coeffs[0][::-1] if not num.is_zero else np.zeros(1)
+        return n, den.coeffs[0][::-1]
+
+
+def delay(tau: float) -> TransferFunction:
+    """The pure delay ``exp(-s tau)``.
+
+    >>> bool(abs(delay(0.5)(1j * np.pi) - np.exp(-0.5j * np.pi)) < 1e-15)
+    True
+    """
+    if not (np.isfinite(tau) and tau >= 0):
+        raise ValueError(f"tau must be finite and >= 0, got {tau!r}")
+    return TransferFunction(QuasiPolynomial([[1.0]], [float(tau)]), QuasiPolynomial.constant(1.0))
+
+
+def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
+    """Convert what a user may pass as a plant or controller into a :class:`TransferFunction`.
+
+    Accepted: a :class:`TransferFunction`; a posicast ``Shaper``; a number;
+    ``(num, den)`` with numpy descending-power coefficient sequences; a
+    ``scipy.signal.lti`` / ``dlti``-free continuous system (``TransferFunction``,
+    ``ZerosPolesGain``, ``StateSpace``); a SISO python-control ``TransferFunction``
+    or ``StateSpace`` (python-control is not imported for this: the object is
+    read through its attributes).
+
+    Raises
+    ------
+    TypeError
+        For anything else, naming ``name``.
+    """
+    if isinstance(obj, TransferFunction):
+        return obj
+    tf = getattr(obj, "transfer", None)
+    if isinstance(tf, TransferFunction):
+        return tf
+    if isinstance(obj, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a transfer function, (num, den) or a number, got a bool")
+    if isinstance(obj, (int, float, np.integer, np.floating)):
+        if not np.isfinite(obj):
+            raise ValueError(f"{name} must be finite")
+        return TransferFunction.constant(float(obj))
+    if isinstance(obj, tuple) and len(obj) == 2:
+        return TransferFunction.from_poly(obj[0], obj[1])
+    mod = type(obj).__module__ or ""
+    if mod.startswith("scipy.signal"):
+        if getattr(obj, "dt", None) not in (None, 0):
+            raise TypeError(f"{name}: a discrete-time scipy system is not a continuous plant")
+        import warnings
+
+        with warnings.catch_warnings():  # ss -> tf leaves rounding-level leading coefficients
+            warnings.simplefilter("ignore")
+            tf_obj = obj.to_tf()
+        return TransferFunction.from_poly(np.atleast_1d(tf_obj.num).ravel(), tf_obj.den)
+    if mod.startswith("control"):
+        return _from_control(obj, name)
+    raise TypeError(
+        f"{name} must be a posicast TransferFunction, a (num, den) tuple, a number, a scipy.signal lti "
+        f"or a python-control TransferFunction/StateSpace; got {type(obj).__name__}"
+    )
+
+
+def _from_control(obj: Any, name: str) -> TransferFunction:
+    if getattr(obj, "ninputs", 1) != 1 or getattr(obj, "noutputs", 1) != 1:
+        raise ValueError(f"{name} must be SISO, got {obj.noutputs}x{obj.ninputs}")
+    dt = getattr(obj, "dt", 0)
+    if dt not in (0, None):
+        raise TypeError(f"{name}: a discrete-time python-control system is not a continuous plant")
+    if hasattr(obj, "A") and hasattr(obj, "B"):  # StateSpace
+        from scipy import signal
+
+        A, B, C, D = (np.asarray(x, dtype=float) for x in (obj.A, obj.B, obj.C, obj.D))
+        if A.size == 0:
+            return TransferFunction.constant(float(D.ravel()[0]))
+        num, den = signal.ss2tf(A, B, C, D)
+        return TransferFunction.from_poly(np.atleast_1d(num[0]), den)
+    num = getattr(obj, "num_array", None)
+    den = getattr(obj, "den_array", None)
+    if num is None:
+        num, den = obj.num, obj.den
+    return TransferFunction.from_poly(np.asarray(num[0][0], dtype=float), np.asarray(den[0][0], dtype=float))

@@ -1,0 +1,74 @@
+"""A lightly damped vibration mode: natural frequency and damping ratio."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from . import _validate as v
+
+__all__ = ["Mode"]
+
+
+@dataclass(frozen=True)
+class Mode:
+    """An underdamped mode with poles ``-zeta*omega +/- j*omega*sqrt(1 - zeta**2)``.
+
+    Parameters
+    ----------
+    omega : float
+        Natural (undamped) frequency in rad/s, finite and > 0.
+    zeta : float
+        Damping ratio, ``0 <= zeta < 1``.
+
+    Examples
+    --------
+    >>> m = Mode(5.49, 0.008)          # seed 001's gantry crane sway mode
+    >>> round(m.damped_omega, 4)
+    5.4898
+    >>> Mode.from_hz(28.0, 0.05).omega == 2 * math.pi * 28.0
+    True
+    """
+
+    omega: float
+    zeta: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "omega", v.positive(self.omega, "omega"))
+        z = v.real(self.zeta, "zeta")
+        if not 0.0 <= z < 1.0:
+            raise ValueError(f"zeta must be in [0, 1) (an underdamped mode), got {z:g}")
+        object.__setattr__(self, "zeta", z)
+
+    @classmethod
+    def from_hz(cls, freq_hz: float, zeta: float) -> Mode:
+        """Mode from its natural frequency in Hz."""
+        return cls(2.0 * math.pi * v.positive(freq_hz, "freq_hz"), zeta)
+
+    @property
+    def freq_hz(self) -> float:
+        return self.omega / (2.0 * math.pi)
+
+    @property
+    def damped_omega(self) -> float:
+        """Damped frequency ``Omega = omega sqrt(1 - zeta^2)`` (rad/s)."""
+        return self.omega * math.sqrt(1.0 - self.zeta**2)
+
+    @property
+    def decay(self) -> float:
+        """Decay rate ``beta = zeta omega`` (1/s)."""
+        return self.zeta * self.omega
+
+    @property
+    def damped_period(self) -> float:
+        """Damped period ``2 pi / Omega`` (s)."""
+        return 2.0 * math.pi / self.damped_omega
+
+    @property
+    def pole(self) -> complex:
+        """The upper pole ``-beta + j Omega``."""
+        return complex(-self.decay, self.damped_omega)
+
+    def scaled(self, ratio: float) -> Mode:
+        """The same damping at ``ratio`` times the frequency."""
+        return Mode(self.omega * ratio, self.zeta)

@@ -1,0 +1,177 @@
+"""``posicast.design(kind, mode, **params)``: one entry point for every shaper of the seeds."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from .. import _validate as v
+from ..modes import Mode
+from . import lumped
+from .base import DistributedPart, Kernel, Shaper
+from .distributed import distributed_zv_part, dzv_parameters, notch_continuous
+from .ei import ei_exact, ei_fit, ei_multi_hump
+
+__all__ = ["design", "KINDS", "ZERO_VIBRATION_KINDS"]
+
+
+@dataclass(frozen=True)
+class _Kind:
+    build: Callable[..., Shaper]
+    params: dict[str, Any]  # name -> default
+    summary: str
+    zero_vibration: bool
+
+
+def _lumped(name: str, mode: Mode, times: np.ndarray, amps: np.ndarray, **params: Any) -> Shaper:
+    return Shaper(times, amps, name=name, modes=(mode,), params=params)
+
+
+def _zvdk(mode: Mode, k: int) -> Shaper:
+    t, a = lumped.zvdk_impulses(mode, k)
+    names = {0: "zv", 1: "zvd", 2: "zvdd", 3: "zvddd"}
+    return _lumped(names.get(k, f"zvd{k}"), mode, t, a, k=k)
+
+
+def _ei(mode: Mode, vtol: float, method: str) -> Shaper:
+    # "exact": hump exactly at the model frequency with height vtol (the standard EI meaning);
+    # "singhose": exact solution of the constraint set Singhose's fit approximates (t3 = T_d);
+    # "fit": Singhose's published damped curve fit (seed 004 eq. 8, corrected).
+    if method == "exact":
+        t, a = ei_exact(mode, vtol, definition="hump")
+    elif method == "singhose":
+        t, a = ei_exact(mode, vtol, definition="singhose")
+    elif method == "fit":
+        t, a = ei_fit(mode, vtol)
+    else:
+        raise ValueError(f"method must be 'exact', 'singhose' or 'fit', got {method!r}")
+    return _lumped("ei", mode, t, a, vtol=vtol, method=method)
+
+
+def _dzv(mode: Mode) -> Shaper:
+    B, theta = dzv_parameters(mode)
+    return Shaper(
+        [0.0], [B], (DistributedPart(1.0 - B, 0.0, (Kernel("uniform", theta),)),),
+        name="dzv", modes=(mode,), params={"B": B, "theta": theta},
+    )
+
+
+def _dist(shape: str, name: str) -> Callable[..., Shaper]:
+    def build(mode: Mode, T: float | None) -> Shaper:
+        T = math.pi / mode.omega if T is None else T
+        A, part, tau = distributed_zv_part(mode, shape, T)
+        return Shaper([0.0], [A], (part,), name=name, modes=(mode,), params={"A": A, "tau": tau, "T": T})
+
+    return build
+
+
+def _notch(mode: Mode) -> Shaper:
+    return Shaper([0.0], [1.0], (), notch_continuous(mode), name="notch", modes=(mode,))
+
+
+KINDS: dict[str, _Kind] = {
+    "zv": _Kind(lambda m: _zvdk(m, 0), {}, "zero vibration, 2 impulses (seed 000 eq. 4)", True),
+    "zvd": _Kind(lambda m: _zvdk(m, 1), {}, "zero vibration and derivative, 3 impulses (seed 004 eq. 5)", True),
+    "zvdd": _Kind(lambda m: _zvdk(m, 2), {}, "ZVDD, 4 impulses (seed 004 eq. 6)", True),
+    "zvddd": _Kind(lambda m: _zvdk(m, 3), {}, "ZVDDD, 5 impulses (seed 004 eq. 7)", True),
+    "zvdk": _Kind(_zvdk, {"k": 1}, "ZVD^k, k + 2 impulses (seed 003 eq. 4)", True),
+    "ei": _Kind(_ei, {"vtol": 0.05, "method": "exact"}, "extra insensitive, 3 impulses (seed 004 eq. 8)", False),
+    "ei2": _Kind(
+        lambda m, vtol: _lumped("ei2", m, *ei_multi_hump(m, vtol, 2), vtol=vtol),
+        {"vtol": 0.05}, "two-hump extra insensitive, 4 impulses", False,
+    ),
+    "ei3": _Kind(
+        lambda m, vtol: _lumped("ei3", m, *ei_multi_hump(m, vtol, 3), vtol=vtol),
+        {"vtol": 0.05}, "three-hump extra insensitive, 5 impulses", False,
+    ),
+    "mzv": _Kind(lambda m: _lumped("mzv", m, *lumped.mzv_impulses(m)), {}, "3 impulses over 3/4 damped period", True),
+    "mis_zv": _Kind(
+        lambda m, n: _lumped("mis_zv", m, *lumped.mis_zv_impulses(m, n), n=n),
+        {"n": 3}, "n-impulse modified ZV (seed 004 eq. 9)", True,
+    ),
+    "mis_zvd": _Kind(
+        lambda m, n, m2: _lumped("mis_zvd", m, *lumped.mis_zvd_impulses(m, n, m2), n=n, m=m2),
+        {"n": 2, "m": 3}, "n x m-impulse modified ZVD (seed 004 eq. 10)", True,
+    ),
+    "dzv": _Kind(_dzv, {}, "equally distributed delay ZV (seed 000 eq. 5-10)", True),
+    "dezv": _Kind(_dist("uniform", "dezv"), {"T": None}, "A + (1-A) uniform delay (seed 001 G1)", True),
+    "dtzv": _Kind(_dist("triangular", "dtzv"), {"T": None}, "A + (1-A) triangular delay (seed 001 G2)", True),
+    "dczv": _Kind(_dist("cosine", "dczv"), {"T": None}, "A + (1-A) cosine delay (seed 001 G3)", True),
+    "dtazv": _Kind(_dist("decreasing", "dtazv"), {"T": None}, "A + (1-A) decreasing-ramp delay (seed 001 G4)", True),
+    "notch": _Kind(_notch, {}, "IIR notch (seed 001 eq. 13)", True),
+}
+
+ZERO_VIBRATION_KINDS = tuple(k for k, d in KINDS.items() if d.zero_vibration)
+
+
+def _as_mode(mode: Any) -> Mode:
+    if isinstance(mode, Mode):
+        return mode
+    if isinstance(mode, (tuple, list)) and len(mode) == 2:
+        return Mode(mode[0], mode[1])
+    raise TypeError(f"mode must be a posicast.Mode or an (omega, zeta) pair, got {type(mode).__name__}")
+
+
+def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper:
+    """Design a shaper for one damped mode.
+
+    Parameters
+    ----------
+    kind : str
+        One of ``zv, zvd, zvdd, zvddd, zvdk, ei, ei2, ei3, mzv, mis_zv, mis_zvd,
+        dzv, dezv, dtzv, dczv, dtazv, notch`` (see ``posicast.KINDS``).
+    mode : Mode or (omega, zeta)
+        The mode to cancel.
+    **params
+        ``k`` (zvdk, integer >= 0, default 1); ``vtol`` (ei/ei2/ei3, in (0, 1),
+        default 0.05); ``method`` (ei: ``"exact"`` (hump at the model), ``"singhose"``
+        (t3 = T_d) or ``"fit"``); ``n`` (mis_zv,
+        integer >= 2, default 3); ``n``, ``m`` (mis_zvd, integers >= 2, default
+        2 and 3); ``T`` (dezv/dtzv/dczv/dtazv, kernel length > 0, default
+        ``pi / omega``).
+
+    Returns
+    -------
+    Shaper
+
+    Raises
+    ------
+    ValueError
+        Unknown ``kind`` or a parameter out of range (the message names it).
+    TypeError
+        A parameter the kind does not take, or of the wrong type.
+
+    Examples
+    --------
+    >>> S = design("zv", Mode(1.0, 0.0))
+    >>> S.impulses[1].tolist(), round(S.duration, 6)
+    ([0.5, 0.5], 3.141593)
+    >>> abs(S(Mode(1.0, 0.0).pole)) < 1e-15
+    True
+    """
+    if not isinstance(kind, str):
+        raise TypeError(f"kind must be a string, got {type(kind).__name__}")
+    key = kind.lower()
+    if key not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
+    spec = KINDS[key]
+    m = _as_mode(mode)
+    unknown = set(params) - set(spec.params)
+    if unknown:
+        allowed = ", ".join(spec.params) or "none"
+        raise TypeError(f"kind {key!r} takes no parameter {sorted(unknown)[0]!r} (parameters: {allowed})")
+    args = {**spec.params, **params}
+    if "k" in args:
+        args["k"] = v.integer(args["k"], "k", 0)
+    if "n" in args:
+        args["n"] = v.integer(args["n"], "n", 2)
+    if "m" in args:
+        args["m2"] = v.integer(args.pop("m"), "m", 2)
+    if "vtol" in args:
+        args["vtol"] = v.in_open_interval(args["vtol"], "vtol", 0.0, 1.0)
+    if "T" in args and args["T"] is not None:
+        args["T"] = v.positive(args["T"], "T")
+    return spec.build(m, **args)

@@ -1,0 +1,64 @@
+"""The command line: JSON output, one-line errors with exit status 2."""
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+from posicast.cli import main
+
+
+def test_design_json_is_machine_readable(capsys):
+    assert main(["design", "zv", "--omega", "2", "--zeta", "0", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["impulses"]["amplitudes"] == [0.5, 0.5]
+    assert abs(data["duration"] - math.pi / 2) < 1e-15
+
+
+def test_design_text_and_freq_hz(capsys):
+    assert main(["design", "dtzv", "--freq-hz", "1", "--zeta", "0.05"]) == 0
+    out = capsys.readouterr().out
+    assert "distributed" in out and "triangular" in out
+
+
+def test_design_parameters_pass_through(capsys):
+    assert main(["design", "mis_zvd", "--omega", "3", "--zeta", "0.1", "--n", "2", "--m", "3", "--json"]) == 0
+    assert len(json.loads(capsys.readouterr().out)["impulses"]["times"]) == 6
+
+
+def test_sensitivity_writes_figure(tmp_path, capsys):
+    out = tmp_path / "fig.png"
+    assert main(["sensitivity", "zv", "zvd", "ei", "--omega", "5", "--zeta", "0.05", "--out", str(out)]) == 0
+    assert out.stat().st_size > 1000
+    assert "insensitivity" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, word",
+    [
+        (["design", "zv", "--omega", "-1", "--zeta", "0.1"], "omega"),
+        (["design", "zv", "--omega", "1", "--zeta", "1.2"], "zeta"),
+        (["design", "ei", "--omega", "1", "--zeta", "0.1", "--vtol", "2"], "vtol"),
+        (["design", "zvdk", "--omega", "1", "--zeta", "0.1", "--k", "-1"], "k"),
+        (["design", "mis_zv", "--omega", "1", "--zeta", "0.1", "--n", "1"], "n"),
+        (["design", "dezv", "--omega", "1", "--zeta", "0.1", "--T", "0"], "T"),
+        (["design", "foo", "--omega", "1", "--zeta", "0.1"], "kind"),
+        (["design", "zv", "--omega", "1", "--zeta", "0.1", "--vtol", "0.1"], "vtol"),
+        (["design", "zv", "--zeta", "0.1"], "omega"),
+        (["design", "zv", "--omega", "abc", "--zeta", "0.1"], "omega"),
+    ],
+)
+def test_errors_are_one_line_exit_2(argv, word, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("posicast: error:")
+    assert word in err
+
+
+def test_installed_command_exits_2_without_traceback():
+    r = subprocess.run([sys.executable, "-m", "posicast", "design", "zv", "--omega", "nan", "--zeta", "0.1"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1
