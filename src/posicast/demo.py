@@ -88,6 +88,7 @@ def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
         sensitivity_plot(shapers, ax=ax, ratio=ratio, labels=labels)
         ax.set_title(title, fontsize=10)
     fig.suptitle(f"Residual vibration, omega = {mode.omega} rad/s, zeta = {mode.zeta} (reference: end of shaper)")
+    fig.tight_layout()
     report.figure(fig, f"sensitivity_{tag}", "Residual vibration (seed 004 eq. 1-3, Singer-Seering normalisation) "
                   "against the actual-to-model frequency ratio; damping held at the model value.")
 
