@@ -266,3 +266,20 @@ def test_wrong_types_raise_type_error():
         design("zv", "fast")
     with pytest.raises(TypeError, match="omega"):
         Mode("1", 0.1)
+
+
+def test_evaluation_and_parts_reject_non_finite_input():
+    from posicast import DistributedPart
+
+    for kind in ("zv", "dzv"):
+        S = design(kind, Mode(1.0, 0.1))
+        with pytest.raises(ValueError, match="finite"):
+            S(np.array([1j, np.nan]))
+        with pytest.raises(ValueError, match="finite"):
+            S.transfer(complex(np.inf, 0))
+    with pytest.raises(ValueError, match="weight"):
+        DistributedPart(float("nan"), 0.0, (Kernel("uniform", 1.0),))
+    with pytest.raises(ValueError, match="delay"):
+        DistributedPart(0.5, -1.0, (Kernel("uniform", 1.0),))
+    with pytest.raises(TypeError, match="kernels"):
+        DistributedPart(0.5, 0.0, ())

@@ -20,7 +20,18 @@ import numpy as np
 
 from .quasipoly import QuasiPolynomial
 
-__all__ = ["TransferFunction", "as_transfer", "delay"]
+__all__ = ["TransferFunction", "as_transfer", "delay", "finite_complex"]
+
+
+def finite_complex(s: Any, name: str = "s") -> np.ndarray:
+    """``s`` as a complex array, or ValueError if any entry is NaN or infinite."""
+    try:
+        arr = np.asarray(s, dtype=complex)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a complex number or array") from exc
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return arr
 
 _TAYLOR_ORDER = 24
 _CANCEL_RTOL = 1e-11  # a Taylor coefficient below this fraction of its scale is zero
@@ -125,7 +136,7 @@ class TransferFunction:
 
     def __call__(self, s: Any) -> Any:
         """Evaluate ``H(s)`` at complex ``s`` (scalar or array).  Poles give ``inf``."""
-        s_arr = np.asarray(s, dtype=complex)
+        s_arr = finite_complex(s)
         flat = s_arr.reshape(-1)
         N = np.atleast_1d(self.num(flat))
         D = np.atleast_1d(self.den(flat))

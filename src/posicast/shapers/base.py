@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..core.quasipoly import QuasiPolynomial
-from ..core.transfer import TransferFunction
+from ..core.transfer import TransferFunction, finite_complex
 from ..modes import Mode
 
 __all__ = ["Kernel", "DistributedPart", "Shaper", "KERNEL_SHAPES"]
@@ -89,6 +89,14 @@ class DistributedPart:
     weight: float
     delay: float
     kernels: tuple[Kernel, ...]
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.weight):
+            raise ValueError(f"weight must be finite, got {self.weight!r}")
+        if not (math.isfinite(self.delay) and self.delay >= 0):
+            raise ValueError(f"delay must be finite and >= 0, got {self.delay!r}")
+        if not self.kernels or not all(isinstance(k, Kernel) for k in self.kernels):
+            raise TypeError("kernels must be a non-empty tuple of Kernel")
 
     @property
     def length(self) -> float:
@@ -238,7 +246,7 @@ class Shaper:
     def __call__(self, s: Any) -> Any:
         """Evaluate ``S(s)`` at complex ``s`` (vectorised)."""
         if self.is_lumped:  # fast exact path: sum of exponentials
-            s_arr = np.asarray(s, dtype=complex)
+            s_arr = finite_complex(s)
             out = np.exp(-np.multiply.outer(s_arr, self.times)) @ self.amplitudes
             return out if np.ndim(s) else complex(out)
         return self.transfer(s)
