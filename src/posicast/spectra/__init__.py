@@ -1,0 +1,26 @@
+"""Spectra of quasi-polynomials and of loops with shapers: certified roots, stability."""
+
+from .rootfinder import BudgetExceeded, RootFindingError, Roots, roots
+from .stability import (
+    DifferenceSpectrum,
+    Stability,
+    difference_spectrum,
+    rightmost,
+    root_bound,
+    spectral_abscissa,
+    stability,
+)
+
+__all__ = [
+    "roots",
+    "Roots",
+    "RootFindingError",
+    "BudgetExceeded",
+    "root_bound",
+    "difference_spectrum",
+    "DifferenceSpectrum",
+    "spectral_abscissa",
+    "rightmost",
+    "stability",
+    "Stability",
+]

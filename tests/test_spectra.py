@@ -1,0 +1,303 @@
+"""Certified quasi-polynomial roots, difference operators and stability (issue #3).
+
+Oracles: seed 000 eq. 3 (ZV zeros) and eq. 8 (DZV zeros, Lambert W, with the
+misprinted 1/tau read as 1/theta), the scalar DDE's Lambert-W spectrum, numpy's
+polynomial roots, and an independent count by trapezoidal integration of
+h'/h along the boundary.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+from scipy.special import lambertw
+
+import posicast
+from posicast import Mode, QuasiPolynomial
+from posicast.spectra import (
+    BudgetExceeded,
+    difference_spectrum,
+    rightmost,
+    root_bound,
+    roots,
+    spectral_abscissa,
+    stability,
+)
+
+SEED000_MODE = Mode(10.0, 0.03)  # F(s) = s / (s^2 + 0.6 s + 100), seed 000 eq. 26
+REGION = (-20.0, 5.0, 0.0, 500.0)  # issue #3 acceptance 2
+
+
+def _match(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance from a point of ``a`` to its nearest point of ``b`` (and back)."""
+    if a.size == 0 and b.size == 0:
+        return 0.0
+    d = np.abs(a[:, None] - b[None, :])
+    return float(max(d.min(axis=1).max(), d.min(axis=0).max()))
+
+
+def _integral_count(h: QuasiPolynomial, rect, n: int = 200_000) -> float:
+    """Independent root count: (1 / 2 pi j) * contour integral of h'/h (trapezoid)."""
+    a, b, c, d = rect
+    corners = [complex(a, c), complex(b, c), complex(b, d), complex(a, d), complex(a, c)]
+    dh = h.derivative()
+    total = 0.0 + 0.0j
+    for z0, z1 in zip(corners[:-1], corners[1:]):
+        t = np.linspace(0.0, 1.0, n)
+        z = z0 + (z1 - z0) * t
+        f = dh(z) / h(z) * (z1 - z0)
+        total += np.trapezoid(f, t)
+    return (total / (2j * math.pi)).real
+
+
+def _seed000_loop(kind: str) -> QuasiPolynomial:
+    """Seed 000 eq. 23: CE = S Q N + P M (times S's denominator for distributed shapers)."""
+    S = posicast.design(kind, SEED000_MODE)
+    P = QuasiPolynomial.from_poly([10.0, 10.0])  # C = (10 s + 10) / (0.01 s + 1), eq. 27
+    Qc = QuasiPolynomial.from_poly([0.01, 1.0])
+    M = QuasiPolynomial.from_poly([1.0])  # G = 1 / (s^2 + s), eq. 25
+    N = QuasiPolynomial.from_poly([1.0, 1.0, 0.0])
+    return S.num * Qc * N + P * M * S.den
+
+
+# ------------------------------------------------------------------ closed forms
+def test_zv_zeros_match_seed000_eq3():
+    S = posicast.design("zv", SEED000_MODE)
+    t, A = S.impulses
+    A0, tau = A[0], t[1]
+    r = roots(S.num, REGION)
+    k = np.arange(0, 200)
+    ref = -np.log(A0 / (1 - A0)) / tau + 1j * np.pi * (2 * k + 1) / tau
+    ref = ref[ref.imag <= 500]
+    assert r.count == len(r.roots) == ref.size == 25
+    assert _match(r.roots, ref) < 1e-10
+    assert np.all(r.residuals <= 1e-12)
+    # the dominant pair sits on the mode's pole (seed 000 eq. 4)
+    assert np.min(np.abs(r.roots - SEED000_MODE.pole)) < 1e-10
+
+
+def test_dzv_zeros_match_seed000_eq8_lambert_w():
+    S = posicast.design("dzv", SEED000_MODE)
+    B = S.impulses[1][0]
+    theta = S.params["theta"] if "theta" in S.params else S.duration
+    a = (1 - B) / B
+    k = np.arange(-200, 201)
+    # seed 000 eq. 8 prints 1/tau; the zeros of eq. 7 need 1/theta
+    ref = (lambertw(a * np.exp(a), k) - a) / theta
+    ref = ref[(ref.imag >= -1e-9) & (ref.imag <= 500) & (ref.real >= -20)]
+    r = roots(S.num, REGION)
+    assert r.shifted  # s = 0 (k = 0, the removable point) lies on the edge Im s = 0
+    assert r.count == len(r.roots) == ref.size
+    assert _match(r.roots, ref) < 1e-10
+    assert np.all(r.residuals <= 1e-12)
+    # W(1, .) is the mode's pole
+    assert abs((lambertw(a * np.exp(a), 1) - a) / theta - SEED000_MODE.pole) < 1e-10
+
+
+def test_zvd3_zeros_are_fourfold_zv_zeros():
+    S = posicast.design("zvdk", SEED000_MODE, k=3)
+    Z = posicast.design("zv", SEED000_MODE)
+    r = roots(S.num, REGION)
+    rz = roots(Z.num, REGION)
+    assert r.count == 100 == len(r.roots)
+    assert np.all(r.multiplicities == 4)
+    assert _match(r.distinct, rz.roots) < 1e-10
+    assert np.all(r.residuals <= 1e-12)
+
+
+@pytest.mark.parametrize("kind", ["dezv", "dtzv", "dczv", "dtazv"])
+def test_distributed_shaper_spectra_certified(kind):
+    S = posicast.design(kind, SEED000_MODE)
+    r = roots(S.num, REGION)
+    assert r.count == len(r.roots) > 10
+    assert np.all(r.residuals <= 1e-12)
+    assert np.min(np.abs(r.roots - SEED000_MODE.pole)) < 1e-9
+    # independent count on a boundary kept off the roots
+    rect = (-19.7, 4.9, 1.3, 470.3)
+    inside = (r.roots.real > rect[0]) & (r.roots.real < rect[1]) & (r.roots.imag > rect[2]) & (r.roots.imag < rect[3])
+    assert round(_integral_count(S.num, rect)) == int(inside.sum())
+
+
+def test_two_mode_shaper_spectrum():
+    m2 = Mode(27.0, 0.05)
+    h = posicast.design("zv", SEED000_MODE).num * posicast.design("zv", m2).num
+    r = roots(h, REGION)
+    r1 = roots(posicast.design("zv", SEED000_MODE).num, REGION)
+    r2 = roots(posicast.design("zv", m2).num, REGION)
+    assert r.count == len(r.roots) == r1.count + r2.count
+    assert _match(r.roots, np.concatenate([r1.roots, r2.roots])) < 1e-10
+    assert np.all(r.residuals <= 1e-12)
+
+
+def test_polynomial_roots_match_numpy():
+    desc = [1.0, 3.0, 7.0, 5.0, 2.0, 9.0]
+    ref = np.roots(desc)
+    r = roots(QuasiPolynomial.from_poly(desc), (-10, 10, -10, 10))
+    assert r.count == 5
+    assert _match(r.roots, ref) < 1e-12
+
+
+def test_scalar_dde_rightmost_root_is_principal_lambert_branch():
+    # s + a + b e^{-s tau} = 0  <=>  s = -a + W_k(-b tau e^{a tau}) / tau
+    for a, b, tau in [(1.0, 2.0, 1.0), (0.5, -0.3, 2.0), (-0.2, 1.5, 0.7)]:
+        h = QuasiPolynomial([[a, 1.0], [b, 0.0]], [0.0, tau])
+        w0 = -a + lambertw(-b * tau * np.exp(a * tau), 0) / tau
+        assert abs(spectral_abscissa(h) - w0.real) < 1e-10
+        top = rightmost(h, 3)
+        ks = np.arange(-3, 4)
+        ref = -a + lambertw(-b * tau * np.exp(a * tau), ks) / tau
+        for z in top:
+            assert np.min(np.abs(ref - z)) < 1e-10
+
+
+# ------------------------------------------------------------------ seed 000 loops
+def test_inverse_zv_loop_unstable_three_high_frequency_pairs():
+    ce = _seed000_loop("zv")
+    assert ce.kind == "neutral"
+    st = stability(ce)
+    assert not st.stable
+    # seed 000 section V: "three couples of unstable higher frequency poles"
+    assert st.unstable_roots.size == 6
+    assert np.all(np.abs(st.unstable_roots.imag) > 40)  # well above the 10 rad/s mode
+    assert st.strongly_stable  # the instability is not the difference operator's
+    assert abs(st.difference_abscissa - SEED000_MODE.pole.real) < 1e-9  # C_D = the ZV zeros' line
+    assert spectral_abscissa(ce) == pytest.approx(float(st.unstable_roots.real.max()), abs=1e-12)
+
+
+def test_inverse_dzv_loop_stable_and_retarded():
+    ce = _seed000_loop("dzv")
+    assert ce.kind == "retarded"
+    # S.num and S.den both vanish at s = 0: a spurious root of CE, not a pole
+    assert abs(ce(0.0)) < 1e-14
+    st = stability(ce, ignore=[0.0])
+    assert st.stable, st.reason
+    assert spectral_abscissa(ce, ignore=[0.0]) < 0
+
+
+@pytest.mark.parametrize("kind", ["zv", "dzv"])
+def test_lemma1_poles_approach_shaper_zeros(kind):
+    """Seed 000 Lemma 1: at high frequency the loop's poles approach the shaper zeros."""
+    ce = _seed000_loop(kind)
+    S = posicast.design(kind, SEED000_MODE)
+    region = (-20.0, 5.0, 0.0, 2000.0)
+    poles = roots(ce, region, ignore=[0.0]).roots
+    zeros = roots(S.num, region, ignore=[0.0]).roots
+    assert np.all(roots(ce, region).residuals <= 1e-12)
+    bands = [(100, 300), (300, 800), (800, 1800)]
+    gaps = []
+    for lo, hi in bands:
+        z = zeros[(zeros.imag > lo) & (zeros.imag < hi)]
+        p = poles[(poles.imag > lo - 50) & (poles.imag < hi + 50)]
+        gaps.append(max(np.min(np.abs(p - zz)) for zz in z))
+    assert gaps[0] > gaps[1] > gaps[2]
+    assert gaps[2] < 0.05
+
+
+# ------------------------------------------------------------------ neutral operators
+def test_difference_spectrum_commensurate_and_not():
+    d = difference_spectrum(QuasiPolynomial([[0.0, 1.0], [0.0, 0.5], [1.0, 0.25]], [0.0, 1.0, 2.0]))
+    # 1 + 0.5 z + 0.25 z^2 with z = e^{-s}: |z| = 2, so Re s = -ln 2
+    assert d.commensurate
+    assert d.abscissa == pytest.approx(-math.log(2.0), abs=1e-12)
+    assert d.strongly_stable
+    d2 = difference_spectrum(QuasiPolynomial([[1.0, 1.0], [0.0, 0.3], [0.0, 0.2]], [0.0, 1.0, math.sqrt(2)]))
+    assert not d2.commensurate
+    assert d2.abscissa <= d2.hale_abscissa + 1e-12
+    assert d2.strongly_stable
+    d3 = difference_spectrum(QuasiPolynomial([[0.0, 1.0], [0.0, 1.5]], [0.0, 1.0]))
+    assert d3.abscissa == pytest.approx(math.log(1.5), abs=1e-12)
+    assert not d3.strongly_stable
+    assert not stability(QuasiPolynomial([[1.0, 1.0], [0.0, 1.5]], [0.0, 1.0])).stable
+
+
+def test_root_bound_holds():
+    ce = _seed000_loop("dzv")
+    R = root_bound(ce, -1.0)
+    r = roots(ce, (-1.0, 5.0, -1.0, 400.0))
+    assert np.all(np.abs(r.roots) <= R)
+
+
+# ------------------------------------------------------------------ boundaries, budget, bad input
+def test_root_on_boundary_is_shifted_and_counted():
+    h = QuasiPolynomial([[0.6], [0.4]], [0.0, math.pi])
+    z = -math.log(1.5) / math.pi + 1j
+    r = roots(h, (z.real, 1.0, 0.0, 4.0))  # left edge through the roots at Im = 1 and 3
+    assert r.shifted and r.region[0] < z.real
+    assert r.count == 2 == len(r.roots)
+    r2 = roots(h, (-1.0, 1.0, 1.0, 2.0))  # bottom edge through the root at Im = 1
+    assert r2.count == 1 and abs(r2.roots[0] - z) < 1e-12
+
+
+def test_multiple_root_of_polynomial_times_delay():
+    # (s + 1)^3 (1 + 0.5 e^{-s}): a triple root at -1 and a neutral chain
+    p = QuasiPolynomial.from_poly(np.poly([-1.0, -1.0, -1.0]))
+    h = p * QuasiPolynomial([[1.0], [0.5]], [0.0, 1.0])
+    r = roots(h, (-3.0, 1.0, -0.5, 30.0))
+    assert r.count == len(r.roots) == 3 + 5
+    i = int(np.argmin(np.abs(r.distinct + 1)))
+    assert r.multiplicities[i] == 3 and abs(r.distinct[i] + 1) < 1e-10
+
+
+def test_random_retarded_quasipolynomials_counts_agree():
+    rng = np.random.default_rng(7)
+    for _ in range(8):
+        deg = rng.integers(2, 5)
+        m = rng.integers(1, 4)
+        coeffs = np.zeros((m + 1, deg + 1))
+        coeffs[0] = rng.normal(size=deg + 1)
+        coeffs[0, -1] = 1.0
+        coeffs[1:, :deg] = rng.normal(size=(m, deg))
+        delays = np.concatenate([[0.0], np.sort(rng.uniform(0.2, 2.0, size=m))])
+        h = QuasiPolynomial(coeffs, delays)
+        rect = (-4.3, 3.1, -20.7, 40.9)
+        r = roots(h, rect)
+        assert r.count == len(r.roots)
+        assert np.all(r.residuals <= 1e-12)
+        if not r.shifted:
+            assert round(_integral_count(h, rect, 100_000)) == r.count
+
+
+@pytest.mark.parametrize(
+    "region, exc, word",
+    [
+        ((0, 0, 0, 1), ValueError, "re_min"),
+        ((1, 0, 0, 1), ValueError, "re_min"),
+        ((0, 1, 2, 1), ValueError, "im_min"),
+        ((0, 1, 0, np.nan), ValueError, "finite"),
+        ((0, 1, 0), ValueError, "4 entries"),
+        ("abcd", TypeError, "region"),
+    ],
+)
+def test_bad_region(region, exc, word):
+    with pytest.raises(exc, match=word):
+        roots(QuasiPolynomial([[1.0, 1.0]]), region)
+
+
+def test_bad_quasipolynomials():
+    with pytest.raises(ValueError, match="identically zero"):
+        roots(QuasiPolynomial.zero(), (0, 1, 0, 1))
+    with pytest.raises(ValueError, match="finite"):
+        roots(QuasiPolynomial([[np.inf, 1.0]]), (0, 1, 0, 1))
+    with pytest.raises(ValueError, match="delays"):
+        roots(QuasiPolynomial([[1.0], [1.0]], [0.0, -1.0]), (0, 1, 0, 1))
+    with pytest.raises(TypeError, match=".num"):
+        roots(posicast.design("zv", SEED000_MODE).transfer, (0, 1, 0, 1))
+    with pytest.raises(TypeError, match="QuasiPolynomial"):
+        roots("s+1", (0, 1, 0, 1))
+    with pytest.raises(ValueError, match="advanced"):
+        stability(QuasiPolynomial([[1.0, 0.0], [0.0, 1.0]], [0.0, 1.0]))
+
+
+def test_budget_fails_fast():
+    h = posicast.design("zv", SEED000_MODE).num
+    t0 = time.perf_counter()
+    with pytest.raises(BudgetExceeded, match="max_evaluations"):
+        roots(h, (-1e5, 1e5, 0, 1e6))
+    assert time.perf_counter() - t0 < 1.0
+    with pytest.raises(BudgetExceeded):
+        roots(h, (-20, 5, 0, 5000), max_evaluations=1000)
+    with pytest.raises(ValueError, match="max_evaluations"):
+        roots(h, (-20, 5, 0, 50), max_evaluations=-1)
