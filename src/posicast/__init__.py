@@ -19,12 +19,20 @@ from .analysis import (
     sensitivity_plot,
 )
 from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
+from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
+from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_abscissa, stability
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "roots",
+    "Roots",
+    "stability",
+    "spectral_abscissa",
+    "rightmost",
+    "difference_spectrum",
     "Mode",
     "QuasiPolynomial",
     "TransferFunction",
@@ -43,4 +51,8 @@ __all__ = [
     "Insensitivity",
     "sensitivity_plot",
     "impulse_plot",
+    "feedforward",
+    "control_action",
+    "inverse_shaper",
+    "Loop",
 ]

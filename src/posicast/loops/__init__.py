@@ -1,0 +1,36 @@
+"""Stage 4: feedback loops with a signal shaper (seed 001 Fig. 1-3, seed 000 Sec. III-V).
+
+>>> import posicast
+>>> loop = posicast.inverse_shaper(G=(1, [1, 1, 0]), C=([10, 10], [0.01, 1]),
+...                                S=posicast.design("dzv", posicast.Mode(10.0, 0.03)))
+>>> loop.architecture, loop.inputs
+('inverse_shaper', ('w', 'd', 'di', 'n'))
+"""
+
+from .loop import (
+    ARCHITECTURES,
+    INPUTS,
+    Loop,
+    Margins,
+    NyquistResponse,
+    control_action,
+    feedforward,
+    inverse_shaper,
+    removable_points,
+)
+from .plots import bode_plot, nyquist_plot, spectrum_plot
+
+__all__ = [
+    "Loop",
+    "feedforward",
+    "control_action",
+    "inverse_shaper",
+    "Margins",
+    "NyquistResponse",
+    "ARCHITECTURES",
+    "INPUTS",
+    "removable_points",
+    "bode_plot",
+    "nyquist_plot",
+    "spectrum_plot",
+]

@@ -1,0 +1,248 @@
+"""Matplotlib views of loops: Bode, Nyquist with the Ms circle, and closed-loop spectra.
+
+Each function draws and returns ``(fig, ax)``; matplotlib is imported only here.
+The data come from :class:`~posicast.loops.Loop` methods (``frequency_response``,
+``nyquist``, ``margins``, ``poles``), which can be used without plotting.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+
+from .. import _validate as v
+from ..core.transfer import TransferFunction
+from .loop import Loop
+
+__all__ = ["bode_plot", "nyquist_plot", "spectrum_plot"]
+
+_COLORS = ("tab:blue", "tab:red", "tab:green", "tab:orange", "tab:purple", "tab:brown")
+
+
+def _as_list(items: Any, name: str, types: tuple[type, ...]) -> list[Any]:
+    seq = list(items) if isinstance(items, (list, tuple)) else [items]
+    if not seq:
+        raise ValueError(f"{name} must not be empty")
+    for it in seq:
+        if not isinstance(it, types):
+            allowed = " or ".join(t.__name__ for t in types)
+            raise TypeError(f"{name} must be a {allowed} or a sequence of them, got {type(it).__name__}")
+    return seq
+
+
+def _omega(omega: Any) -> np.ndarray:
+    w = v.real_array(omega, "omega").reshape(-1)
+    if w.size < 2:
+        raise ValueError("omega must contain at least 2 frequencies")
+    return w
+
+
+def bode_plot(
+    items: Loop | TransferFunction | Sequence[Loop | TransferFunction],
+    src: str = "w",
+    dst: str = "y",
+    omega: Any = None,
+    ax: Any = None,
+    labels: Sequence[str] | None = None,
+) -> tuple[Any, Any]:
+    """Magnitude [dB] and phase [deg] of channel ``src -> dst`` of one or several loops.
+
+    Parameters
+    ----------
+    items : Loop, TransferFunction, or a sequence of them
+        For a Loop, its channel ``src -> dst`` is drawn; a TransferFunction is
+        drawn as is (e.g. ``loop.sensitivity``).
+    src, dst : str
+        The channel (see :meth:`Loop.transfer`).
+    omega : array_like
+        Frequencies [rad/s] (default: the first loop's :meth:`Loop.default_omega`,
+        or ``logspace(-2, 3)`` for transfer functions).
+    ax : matplotlib Axes or a pair of Axes, optional
+        A pair ``(magnitude, phase)``; a single Axes draws the magnitude only.
+    labels : sequence of str, optional
+        Legend entries (default: the loops' labels).
+
+    Returns
+    -------
+    fig, (ax_mag, ax_phase)
+        ``ax_phase`` is None when a single Axes was given.
+    """
+    seq = _as_list(items, "items", (Loop, TransferFunction))
+    if labels is not None and len(labels) != len(seq):
+        raise ValueError(f"labels has {len(labels)} entries for {len(seq)} items")
+    if omega is None:
+        first = next((it for it in seq if isinstance(it, Loop)), None)
+        w = first.default_omega() if first is not None else np.logspace(-2, 3, 2000)
+    else:
+        w = _omega(omega)
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, (ax_mag, ax_ph) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    elif isinstance(ax, (list, tuple, np.ndarray)):
+        if len(ax) != 2:
+            raise ValueError(f"ax must be one Axes or a pair (magnitude, phase), got {len(ax)}")
+        ax_mag, ax_ph = ax
+        fig = ax_mag.figure
+    else:
+        ax_mag, ax_ph = ax, None
+        fig = ax.figure
+    for i, it in enumerate(seq):
+        if isinstance(it, Loop):
+            H = it.frequency_response(src, dst, w)
+            lab = it.label
+        else:
+            H = it.freqresp(w)
+            lab = f"H{i}"
+        if labels is not None:
+            lab = labels[i]
+        with np.errstate(divide="ignore"):
+            mag = 20.0 * np.log10(np.abs(H))
+        ax_mag.semilogx(w, mag, color=_COLORS[i % len(_COLORS)], label=lab)
+        if ax_ph is not None:
+            ph = np.degrees(np.unwrap(np.angle(H)))
+            ax_ph.semilogx(w, ph, color=_COLORS[i % len(_COLORS)], label=lab)
+    ax_mag.set_ylabel(f"|T_{src}{dst}| [dB]" if any(isinstance(it, Loop) for it in seq) else "magnitude [dB]")
+    ax_mag.grid(True, which="both", alpha=0.3)
+    ax_mag.legend(fontsize=8)
+    if ax_ph is not None:
+        ax_ph.set_ylabel("phase [deg]")
+        ax_ph.set_xlabel(r"$\omega$ [rad/s]")
+        ax_ph.grid(True, which="both", alpha=0.3)
+    else:
+        ax_mag.set_xlabel(r"$\omega$ [rad/s]")
+    return fig, (ax_mag, ax_ph)
+
+
+def nyquist_plot(
+    loop: Loop | Sequence[Loop],
+    omega: Any = None,
+    ms: float | None | bool = None,
+    ax: Any = None,
+    labels: Sequence[str] | None = None,
+) -> tuple[Any, Any]:
+    """Nyquist curve of the loop gain ``L(j omega)`` with the ``Ms`` circle (seed 001 Fig. 7).
+
+    Parameters
+    ----------
+    loop : Loop or sequence of Loop
+    omega : array_like, optional
+        Frequencies [rad/s], default each loop's :meth:`Loop.default_omega`.
+        The mirror image (``omega < 0``) is drawn dashed.
+    ms : float, None or False
+        Draw the circle of center -1 and radius ``1 / ms``: a float is a
+        design constraint (e.g. ``Ms = 2``); None draws each loop's own peak
+        sensitivity circle (tangent to its curve); False draws no circle.
+    ax : matplotlib Axes, optional
+    labels : sequence of str, optional
+
+    Returns
+    -------
+    fig, ax
+    """
+    loops = _as_list(loop, "loop", (Loop,))
+    if labels is not None and len(labels) != len(loops):
+        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    if ms is not None and ms is not False:
+        ms = v.positive(ms, "ms")
+        if ms < 1.0:
+            raise ValueError(f"ms must be >= 1 (a peak sensitivity), got {ms:g}")
+    w = None if omega is None else _omega(omega)
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(6, 6))
+    else:
+        fig = ax.figure
+    theta = np.linspace(0.0, 2.0 * np.pi, 400)
+    for i, lp in enumerate(loops):
+        col = _COLORS[i % len(_COLORS)]
+        data = lp.nyquist(w)
+        L = data.response
+        lab = lp.label if labels is None else labels[i]
+        ax.plot(L.real, L.imag, color=col, label=lab)
+        ax.plot(L.real, -L.imag, color=col, ls="--", lw=0.8)
+        if ms is None:
+            m = lp.margins(data.omega)
+            r = 1.0 / m.ms
+            ax.plot(-1 + r * np.cos(theta), r * np.sin(theta), color=col, lw=0.8, ls=":",
+                    label=f"Ms = {m.ms:.3g}")
+    if ms is not None and ms is not False:
+        r = 1.0 / ms
+        ax.plot(-1 + r * np.cos(theta), r * np.sin(theta), color="k", lw=1.0, label=f"Ms = {ms:g}")
+    ax.plot([-1.0], [0.0], "k+", ms=10)
+    ax.set_xlabel("Re L(j$\\omega$)")
+    ax.set_ylabel("Im L(j$\\omega$)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig, ax
+
+
+def spectrum_plot(
+    loop: Loop | Sequence[Loop],
+    region: Sequence[float],
+    ax: Any = None,
+    labels: Sequence[str] | None = None,
+) -> tuple[Any, Any]:
+    """Plant poles, shaper zeros and closed-loop poles in the complex plane (seed 000 Fig. 6).
+
+    Black diamonds: poles of ``F`` (roots of its denominator); crosses: zeros
+    of the shaper (roots of ``S.num`` less its removable points); squares, then
+    circles, ...: closed-loop poles (:meth:`Loop.poles`).  Several loops share
+    one axes (seed 000 Fig. 6 overlays the inverse ZV and inverse DZV loops).
+
+    Parameters
+    ----------
+    loop : Loop or sequence of Loop
+    region : (re_min, re_max, im_min, im_max)
+        Rectangle searched for roots (:func:`posicast.spectra.roots`).
+    ax : matplotlib Axes, optional
+    labels : sequence of str, optional
+
+    Returns
+    -------
+    fig, ax
+    """
+    loops = _as_list(loop, "loop", (Loop,))
+    if labels is not None and len(labels) != len(loops):
+        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    from ..spectra import roots
+
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7, 6))
+    else:
+        fig = ax.figure
+    markers = ("s", "o", "^", "v", "D", "p")
+    shaper_markers = ("x", "+", "1", "2", "3", "4")
+    plotted_plant = False
+    for i, lp in enumerate(loops):
+        col = _COLORS[i % len(_COLORS)]
+        lab = lp.label if labels is None else labels[i]
+        if not plotted_plant and not lp.F.den.is_zero and lp.F.den.degree >= 1:
+            fp = roots(lp.F.den, region).roots
+            if fp.size:
+                ax.plot(fp.real, fp.imag, "kd", ms=8, mfc="none", mew=1.5, label="poles of F")
+            plotted_plant = True
+        if lp.S is not None:
+            from .loop import removable_points
+
+            if not (lp.S.num.is_polynomial and lp.S.num.degree < 1):
+                sz = roots(lp.S.num, region, ignore=removable_points(lp.S.num, lp.S.den)).roots
+                if sz.size:
+                    ax.plot(sz.real, sz.imag, shaper_markers[i % len(shaper_markers)], color=col, ms=8,
+                            label=f"zeros of S ({lab})")
+        pol = lp.poles(region).roots
+        ax.plot(pol.real, pol.imag, markers[i % len(markers)], color=col, mfc="none", ms=7,
+                label=f"closed-loop poles ({lab})")
+    ax.axvline(0.0, color="k", lw=0.6)
+    ax.set_xlim(region[0], region[1])
+    ax.set_ylim(region[2], region[3])
+    ax.set_xlabel("Re s")
+    ax.set_ylabel("Im s")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return fig, ax
