@@ -22,11 +22,18 @@ from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
 from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
+from . import cases
+from .simulate import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_abscissa, stability
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "simulate",
+    "SimulationResponse",
+    "ShaperFilter",
+    "shape_signal",
+    "cases",
     "roots",
     "Roots",
     "stability",
