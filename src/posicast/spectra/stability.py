@@ -212,7 +212,7 @@ def _conjugate_closure(r: Roots) -> np.ndarray:
     real = z[np.abs(z.imag) <= tol]
     upper = z[z.imag > tol]
     full = np.concatenate([real.real.astype(complex), upper, upper.conj()])
-    return full[np.lexsort((full.imag, -full.real))]
+    return full[np.lexsort((-full.imag, -full.real))]
 
 
 def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any) -> np.ndarray | None:
@@ -242,7 +242,7 @@ def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any) -> np.ndarra
     if not found:
         return np.zeros(0, complex)
     full = np.concatenate(found)
-    return full[np.lexsort((full.imag, -full.real))]
+    return full[np.lexsort((-full.imag, -full.real))]
 
 
 def rightmost(h: Any, n: int = 1, *, ignore: Any = None, max_alpha_steps: int = 12) -> np.ndarray:
