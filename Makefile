@@ -1,10 +1,12 @@
 # Two set-up commands, both safe on a fresh clone:
 #   make demo   -> creates .venv, installs posicast, writes report/index.html
 #   make test   -> creates .venv if needed, runs the whole suite
+#   make bench  -> also installs the bench extra (comparators), runs benchmarks/
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+BENCH_STAMP := $(VENV)/.bench-installed
 
 .PHONY: demo test bench clean venv
 
@@ -21,6 +23,13 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest
+
+$(BENCH_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[bench]'
+	touch $(BENCH_STAMP)
+
+bench: $(BENCH_STAMP)
+	MPLBACKEND=Agg $(PY) benchmarks/run.py
 
 clean:
 	rm -rf $(VENV) report .pytest_cache

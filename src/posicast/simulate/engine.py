@@ -276,6 +276,81 @@ def _delay_free_loop(loop: Loop, sig: dict[str, np.ndarray], r: np.ndarray, h: f
     return out
 
 
+def _nonlinear(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], h: float, cm: str,
+               sat: tuple[float, float] | None, rate: float | None) -> dict[str, np.ndarray]:
+    """Sample-by-sample simulation with actuator saturation and/or rate limit on ``u``.
+
+    Same discretisation as the sampled mode (controller by ``cm``, plant exact
+    ZOH, shaper taps with fractional delays; the inverse shaper as the
+    recursion of seed 000 eq. 19/20), run as an explicit loop because the
+    limits make the loop nonlinear.
+    """
+    N = sig["w"].size
+    Ac, Bc, Cc, Dc = _ss(discretize_rational(loop.C, h, cm))
+    Ag, Bg, Cg, Dg = _ss(discretize_rational(loop.G, h, "zoh"))
+    if Dg != 0:
+        raise ValueError("G must be strictly proper for simulation (a held input feeds straight through)")
+    taps = np.ones(1)
+    if S is not None:
+        D = discretize(S, 1.0 / h, "linear")
+        if D.b is not None:
+            raise ValueError("saturation/rate_limit: shapers with an IIR part (notch) are not supported here")
+        taps = D.taps
+    nz = np.flatnonzero(taps)
+    nz_past = nz[nz > 0]
+    w_past = taps[nz_past]
+    r = sig["w"]
+    if loop.architecture == "feedforward" and S is not None:
+        r = signal.lfilter(taps, [1.0], r)
+    lo, hi = sat if sat is not None else (-np.inf, np.inf)
+    du = rate * h if rate is not None else np.inf
+    xc = np.zeros(Ac.shape[0])
+    xg = np.zeros(Ag.shape[0])
+    pad = int(nz.max()) + 1 if nz.size else 1
+    vh = np.zeros(N + pad)  # histories, offset by pad so index k - j >= 0
+    mh = np.zeros(N + pad)
+    out = {k: np.zeros(N) for k in ("e", "v", "u", "up", "z")}
+    if loop.architecture == "inverse_shaper":
+        out["m"] = np.zeros(N)
+    u_prev = 0.0
+    cg, cc = Cg[0], (Cc[0] if Ac.size else None)
+    bc, bg = Bc[:, 0], Bg[:, 0]
+    ca, inv = loop.architecture == "control_action", loop.architecture == "inverse_shaper"
+    for k in range(N):
+        z = float(cg @ xg) + sig["d"][k]
+        zn = z + sig["n"][k]
+        if inv:
+            m = (zn - float(np.dot(w_past, mh[pad + k - nz_past]))) / taps[0]
+            mh[pad + k] = m
+            out["m"][k] = m
+        else:
+            m = zn
+        e = r[k] - m
+        v = float(cc @ xc) + Dc * e if Ac.size else Dc * e
+        vh[pad + k] = v
+        u = taps[0] * v + float(np.dot(w_past, vh[pad + k - nz_past])) if ca else v
+        u = min(max(u, lo), hi)
+        u = min(max(u, u_prev - du), u_prev + du)
+        u_prev = u
+        up = u + sig["di"][k]
+        if Ac.size:
+            xc = Ac @ xc + bc * e
+        xg = Ag @ xg + bg * up
+        out["e"][k], out["v"][k], out["u"][k], out["up"][k], out["z"][k] = e, v, u, up, z
+    FG = _cancel_origin(loop.F * loop.G)
+    Af, Bf, Cf, Df = _ss(discretize_rational(FG, h, "zoh"))
+    from .discrete import schur_propagate
+
+    y = schur_propagate(Af, [(Bf[:, 0], out["up"])], Cf[0]) if Af.size else Df * out["up"]
+    if np.any(sig["d"]):
+        F = discretize_rational(loop.F, h, "zoh")
+        y = y + signal.lfilter(F[0], F[1], sig["d"])
+    out["y"] = y
+    if loop.architecture == "feedforward":
+        out["r"] = r
+    return out
+
+
 def _exact_feedforward(loop: Loop, inputs: dict[str, np.ndarray], h: float) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     dsts = [d for d in loop.outputs]
@@ -304,6 +379,8 @@ def simulate(
     di: Any = None,
     substeps: int | None = None,
     controller_method: str = "bilinear",
+    saturation: float | tuple[float, float] | None = None,
+    rate_limit: float | None = None,
     divergence_limit: float = 1e6,
 ) -> SimulationResponse:
     """Simulate a loop of :mod:`posicast.loops` for reference, disturbance and noise signals.
@@ -327,6 +404,13 @@ def simulate(
         ``t`` (default: enough for ``h <= 1 ms`` and at least 1).
     controller_method : {'bilinear', 'zoh', 'foh'}
         Sampled mode: the controller's discretisation.
+    saturation : float or (float, float), optional
+        Actuator limits on ``u``: ``(u_min, u_max)``, or ``u_max`` for ``±u_max``.
+    rate_limit : float, optional
+        Largest ``|du/dt|`` of the actuator command [units/s].  With either
+        limit the loop is run sample by sample (sampled mode at
+        ``sample_rate``; continuous mode at the internal step, ZOH plant and
+        Tustin controller).
     divergence_limit : float
         A signal whose magnitude exceeds ``divergence_limit`` times the largest
         input magnitude (or 1) has diverged: the response stops at that time
@@ -361,19 +445,35 @@ def simulate(
     if controller_method not in ("bilinear", "zoh", "foh"):
         raise ValueError(f"controller_method must be 'bilinear', 'zoh' or 'foh', got {controller_method!r}")
     S = _shaper_object(loop)
+    sat = _check_saturation(saturation)
+    if rate_limit is not None:
+        if isinstance(rate_limit, bool) or not isinstance(rate_limit, (int, float)) or not rate_limit > 0:
+            raise ValueError(f"rate_limit must be a positive number of units per second, got {rate_limit!r}")
+        rate_limit = float(rate_limit)
+    nonlinear = sat is not None or rate_limit is not None
     accuracy = 0.0
+    if nonlinear:
+        if sample_rate is None:
+            if substeps is None:
+                substeps = max(1, int(math.ceil(dt / 1e-3 - 1e-9)))
+            h = dt / substeps
+            _check_rates(S, h, "the internal rate (1/t step x substeps)", 1.0 / h)
+            fine = {k: np.repeat(v, substeps) for k, v in sig.items()}
+            res = _nonlinear(loop, S, fine, h, "bilinear", sat, rate_limit)
+            out = {k: v[::substeps] for k, v in res.items()}
+            mode = "continuous (nonlinear, fine step)"
+        else:
+            Ts, m = _controller_period(sample_rate, dt)
+            _check_rates(S, Ts, "sample_rate", float(sample_rate))
+            for lp in (loop.F, loop.G):
+                _check_mode_nyquist(lp, float(sample_rate))
+            coarse = {k: v[::m] for k, v in sig.items()} if m > 1 else sig
+            res = _nonlinear(loop, S, coarse, Ts, controller_method, sat, rate_limit)
+            out = _plant_on_fine_grid(loop, res, sig, Ts, m) if m > 1 else res
+            mode = "sampled"
+        return _finish(loop, t, sig, out, mode, sample_rate, accuracy, divergence_limit)
     if sample_rate is not None:
-        if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not sample_rate > 0 \
-                or not math.isfinite(sample_rate):
-            raise ValueError(f"sample_rate must be a positive number of Hz (or None), got {sample_rate!r}")
-        Ts = 1.0 / float(sample_rate)
-        ratio = Ts / dt
-        m = int(round(ratio))
-        if m < 1 or abs(ratio - m) > 1e-6 * ratio:
-            raise ValueError(
-                f"sample_rate: the controller period {Ts:.6g} s must be an integer multiple of the step of t "
-                f"({dt:.6g} s)"
-            )
+        Ts, m = _controller_period(sample_rate, dt)
         _check_rates(S, Ts, "sample_rate", float(sample_rate))
         for lp in (loop.F, loop.G):
             _check_mode_nyquist(lp, float(sample_rate))
@@ -397,6 +497,55 @@ def simulate(
             accuracy = float(np.max(np.abs(out["y"] - coarse["y"]))) if N else 0.0
             mode = "continuous"
     return _finish(loop, t, sig, out, mode, sample_rate, accuracy, divergence_limit)
+
+
+def _check_saturation(saturation: Any) -> tuple[float, float] | None:
+    if saturation is None:
+        return None
+    if isinstance(saturation, (int, float)) and not isinstance(saturation, bool):
+        if not saturation > 0:
+            raise ValueError(f"saturation must be > 0 (symmetric limit) or (u_min, u_max), got {saturation!r}")
+        return -float(saturation), float(saturation)
+    try:
+        lo, hi = (float(x) for x in saturation)
+    except (TypeError, ValueError) as exc:
+        raise TypeError("saturation must be a number or a pair (u_min, u_max)") from exc
+    if not lo < hi:
+        raise ValueError(f"saturation needs u_min < u_max, got ({lo:g}, {hi:g})")
+    return lo, hi
+
+
+def _controller_period(sample_rate: Any, dt: float) -> tuple[float, int]:
+    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not sample_rate > 0 \
+            or not math.isfinite(sample_rate):
+        raise ValueError(f"sample_rate must be a positive number of Hz (or None), got {sample_rate!r}")
+    Ts = 1.0 / float(sample_rate)
+    ratio = Ts / dt
+    m = int(round(ratio))
+    if m < 1 or abs(ratio - m) > 1e-6 * ratio:
+        raise ValueError(
+            f"sample_rate: the controller period {Ts:.6g} s must be an integer multiple of the step of t "
+            f"({dt:.6g} s)"
+        )
+    return Ts, m
+
+
+def _plant_on_fine_grid(loop: Loop, c_out: dict[str, np.ndarray], sig: dict[str, np.ndarray], Ts: float,
+                        m: int) -> dict[str, np.ndarray]:
+    """Hold the controller's outputs over ``m`` steps of ``t`` and run the plant exactly on ``t``."""
+    N = sig["w"].size
+    out: dict[str, np.ndarray] = {}
+    for k in ("e", "v", "u", "m", "r"):
+        if k in c_out:
+            out[k] = np.repeat(c_out[k], m)[:N]
+    up = out["u"] + sig["di"]
+    G = discretize_rational(loop.G, Ts / m, "zoh")
+    FG = discretize_rational(_cancel_origin(loop.F * loop.G), Ts / m, "zoh")
+    F = discretize_rational(loop.F, Ts / m, "zoh")
+    out["up"] = up
+    out["z"] = signal.lfilter(G[0], G[1], up) + sig["d"]
+    out["y"] = signal.lfilter(FG[0], FG[1], up) + signal.lfilter(F[0], F[1], sig["d"])
+    return out
 
 
 def _check_mode_nyquist(tf: TransferFunction, rate: float) -> None:
@@ -424,19 +573,7 @@ def _sampled(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], Ts: float
         c_out = _DiscreteLoop(loop, S, Ts, "zoh", cm).response(coarse)
     if m == 1:
         return c_out
-    # the controller runs every m steps of t; the plant is exact on t for the held command
-    out: dict[str, np.ndarray] = {}
-    for k in ("e", "v", "u", "m", "r"):
-        if k in c_out:
-            out[k] = np.repeat(c_out[k], m)[:N]
-    up = out["u"] + sig["di"]
-    G = discretize_rational(loop.G, Ts / m, "zoh")
-    FG = discretize_rational(loop.F * loop.G, Ts / m, "zoh")
-    F = discretize_rational(loop.F, Ts / m, "zoh")
-    out["up"] = up
-    out["z"] = signal.lfilter(G[0], G[1], up) + sig["d"]
-    out["y"] = signal.lfilter(FG[0], FG[1], up) + signal.lfilter(F[0], F[1], sig["d"])
-    return out
+    return _plant_on_fine_grid(loop, c_out, sig, Ts, m)
 
 
 def _fine(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], h: float, sub: int) -> dict[str, np.ndarray]:
