@@ -164,9 +164,17 @@ def schur_propagate(
                 if j:
                     done[j[0]] = True
                     weight = 2.0  # the conjugate mode contributes the conjugate
+            coef = rows @ V[:, i]
+            if abs(lam[i].imag) == 0.0 and np.all(np.abs(V[:, i].imag) == 0) and np.all(np.abs(Vinv[i].imag) == 0):
+                # a real mode: real arithmetic
+                drive_r = sum(float((Vinv[i] @ g).real) * u for g, u in inputs)
+                zr = signal.lfilter([0.0, 1.0], [1.0, -lam[i].real], drive_r)
+                out += np.outer(weight * coef.real, zr)
+                continue
             drive = sum(complex(Vinv[i] @ g) * u for g, u in inputs)
             zi = signal.lfilter([0.0, 1.0], [1.0, -lam[i]], drive)
-            out += weight * np.real(np.outer(rows @ V[:, i], zi))
+            # Re(c z) = Re c Re z - Im c Im z, without forming the complex outer product
+            out += np.outer(weight * coef.real, zi.real) - np.outer(weight * coef.imag, zi.imag)
         return out if np.ndim(c) == 2 else out[0]
     T, Q = schur(Phi.astype(complex), output="complex")
     QH = Q.conj().T

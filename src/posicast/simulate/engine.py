@@ -351,6 +351,106 @@ def _nonlinear(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], h: floa
     return out
 
 
+def _continuous_ss(tf: TransferFunction) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    num = np.trim_zeros(tf.num.coeffs[0][::-1], "f") if not tf.num.is_zero else np.zeros(1)
+    den = np.trim_zeros(tf.den.coeffs[0][::-1], "f")
+    if num.size > den.size:
+        raise ValueError("an improper block (more zeros than poles) cannot be simulated")
+    if den.size == 1:
+        return np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), float(num[-1] / den[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", signal.BadCoefficients)
+        A, B, Cm, D = signal.tf2ss(num, den)
+    return A, B, Cm, float(D[0, 0])
+
+
+def _exact_closed_loop(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], h: float) -> dict[str, np.ndarray]:
+    """Exact sampled solution of the continuous loop for held inputs (lumped feedforward shaper or none).
+
+    The closed loop (C, G and F in continuous time) is one state-space system;
+    each impulse ``A_i`` at ``t_i = (n_i + f_i) h`` of the feedforward shaper
+    feeds the held reference in two parts, before and after the instant
+    ``f_i h`` inside a step (modified z-transform), so fractional delays are
+    exact.  One propagation (:func:`schur_propagate`) gives every signal.
+    """
+    from scipy.linalg import expm
+
+    from .discrete import _shift, schur_propagate
+
+    Ac, Bc, Cc, Dc = _continuous_ss(loop.C)
+    Ag, Bg, Cg, Dg = _continuous_ss(loop.G)
+    Af, Bf, Cf, Df = _continuous_ss(loop.F)
+    if Dg != 0:
+        raise ValueError("G must be strictly proper for simulation")
+    nc, ng, nf = Ac.shape[0], Ag.shape[0], Af.shape[0]
+    n = nc + ng + nf
+    ic, ig, iff = slice(0, nc), slice(nc, nc + ng), slice(nc + ng, n)
+    A = np.zeros((n, n))
+    A[ic, ic] = Ac
+    A[ic, ig] = -Bc @ Cg
+    A[ig, ic] = Bg @ Cc
+    A[ig, ig] = Ag - Dc * Bg @ Cg
+    A[iff, ig] = Bf @ Cg
+    A[iff, iff] = Af
+    b_ext = np.concatenate([Bc[:, 0], Dc * Bg[:, 0], np.zeros(nf)])  # ext = r - n - d
+    b_di = np.concatenate([np.zeros(nc), Bg[:, 0], np.zeros(nf)])
+    b_d = np.concatenate([np.zeros(nc + ng), Bf[:, 0]])  # d enters F through z = G up + d
+
+    def zoh(b: np.ndarray, T: float) -> np.ndarray:
+        M = np.zeros((n + 1, n + 1))
+        M[:n, :n] = A * T
+        M[:n, n] = b * T
+        E = expm(M)
+        return E[:n, n]
+
+    Phi = expm(A * h)
+    N = sig["w"].size
+    w = sig["w"]
+    times, amps = (np.zeros(1), np.ones(1)) if S is None else S.impulses
+    inputs: list[tuple[np.ndarray, np.ndarray]] = []
+    r_now = np.zeros(N)  # r(t_k), for the direct terms
+    for ti, ai in zip(times, amps):
+        x = ti / h
+        k0 = int(np.floor(x + 1e-12))
+        f = x - k0 if x - k0 > 1e-12 else 0.0
+        if f == 0.0:
+            inputs.append((ai * zoh(b_ext, h), _shift(w, k0)))
+            r_now += ai * _shift(w, k0)
+        else:
+            delta = f * h
+            late = zoh(b_ext, h - delta)
+            early = expm(A * (h - delta)) @ zoh(b_ext, delta)
+            inputs.append((ai * late, _shift(w, k0)))
+            inputs.append((ai * early, _shift(w, k0 + 1)))
+            r_now += ai * _shift(w, k0 + 1)
+    held = -sig["n"] - sig["d"]
+    if np.any(held):
+        inputs.append((zoh(b_ext, h), held))
+    if np.any(sig["di"]):
+        inputs.append((zoh(b_di, h), sig["di"]))
+    if np.any(sig["d"]):
+        inputs.append((zoh(b_d, h), sig["d"]))
+    rows = np.array([
+        np.concatenate([np.zeros(nc), Cg[0], np.zeros(nf)]),                                # G xg
+        np.concatenate([Cc[0] if nc else np.zeros(0), -Dc * Cg[0], np.zeros(nf)]),          # v - Dc ext
+        np.concatenate([np.zeros(nc), Df * Cg[0], Cf[0] if nf else np.zeros(0)]),           # y - Df d
+    ])
+    gx, v0, y0 = schur_propagate(Phi, inputs, rows)
+    ext_now = r_now + held
+    out: dict[str, np.ndarray] = {}
+    out["z"] = gx + sig["d"]
+    out["e"] = r_now - out["z"] - sig["n"]
+    out["v"] = v0 + Dc * ext_now
+    out["u"] = out["v"]
+    out["up"] = out["u"] + sig["di"]
+    out["y"] = y0 + Df * sig["d"]
+    if loop.architecture == "feedforward":
+        out["r"] = r_now
+    elif loop.architecture == "inverse_shaper":
+        out["m"] = out["z"] + sig["n"]
+    return out
+
+
 def _exact_feedforward(loop: Loop, inputs: dict[str, np.ndarray], h: float) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     dsts = [d for d in loop.outputs]
@@ -482,7 +582,10 @@ def simulate(
     else:
         exact = loop.architecture == "feedforward" or S is None
         if exact:
-            out = _exact_feedforward(loop, sig, dt)
+            if S is None or (not S.distributed and S.continuous is None):
+                out = _exact_closed_loop(loop, S, sig, dt)
+            else:
+                out = _exact_feedforward(loop, sig, dt)
             mode = "continuous (exact)"
         else:
             if substeps is None:
