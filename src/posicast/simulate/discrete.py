@@ -152,7 +152,10 @@ def schur_propagate(
     lam, V = np.linalg.eig(Phi)
     if np.linalg.cond(V) < 1e8:
         Vinv = np.linalg.inv(V)
-        out = np.zeros((rows.shape[0], N))
+        # y = sum_i Re(coef_i z_i): the modal signals go into one matrix, then one product
+        Z = np.empty((2 * n, N))
+        W = np.empty((rows.shape[0], 2 * n))
+        used = 0
         done = np.zeros(n, dtype=bool)
         for i in range(n):
             if done[i]:
@@ -164,17 +167,19 @@ def schur_propagate(
                 if j:
                     done[j[0]] = True
                     weight = 2.0  # the conjugate mode contributes the conjugate
-            coef = rows @ V[:, i]
-            if abs(lam[i].imag) == 0.0 and np.all(np.abs(V[:, i].imag) == 0) and np.all(np.abs(Vinv[i].imag) == 0):
-                # a real mode: real arithmetic
+            coef = weight * (rows @ V[:, i])
+            if lam[i].imag == 0.0 and not np.any(V[:, i].imag) and not np.any(Vinv[i].imag):
                 drive_r = sum(float((Vinv[i] @ g).real) * u for g, u in inputs)
-                zr = signal.lfilter([0.0, 1.0], [1.0, -lam[i].real], drive_r)
-                out += np.outer(weight * coef.real, zr)
+                Z[used] = signal.lfilter([0.0, 1.0], [1.0, -lam[i].real], drive_r)
+                W[:, used] = coef.real
+                used += 1
                 continue
             drive = sum(complex(Vinv[i] @ g) * u for g, u in inputs)
             zi = signal.lfilter([0.0, 1.0], [1.0, -lam[i]], drive)
-            # Re(c z) = Re c Re z - Im c Im z, without forming the complex outer product
-            out += np.outer(weight * coef.real, zi.real) - np.outer(weight * coef.imag, zi.imag)
+            Z[used], Z[used + 1] = zi.real, zi.imag  # Re(c z) = Re c Re z - Im c Im z
+            W[:, used], W[:, used + 1] = coef.real, -coef.imag
+            used += 2
+        out = W[:, :used] @ Z[:used]
         return out if np.ndim(c) == 2 else out[0]
     T, Q = schur(Phi.astype(complex), output="complex")
     QH = Q.conj().T
