@@ -20,6 +20,7 @@ from .analysis import (
 )
 from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
 from .loops import Loop, control_action, feedforward, inverse_shaper
+from .identify import Calibration, Identification, Interval, calibrate, identify
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
 from . import cases
@@ -29,6 +30,11 @@ from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_absc
 __version__ = "0.1.0"
 
 __all__ = [
+    "identify",
+    "calibrate",
+    "Identification",
+    "Interval",
+    "Calibration",
     "simulate",
     "SimulationResponse",
     "ShaperFilter",

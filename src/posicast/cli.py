@@ -1,4 +1,4 @@
-"""Command line: ``posicast design``, ``posicast sensitivity``, ``posicast kinds``.
+"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``.
 
 Every error (bad argument, out-of-range value) prints one line to stderr and
 exits with status 2; no traceback.
@@ -58,7 +58,102 @@ def _build_parser() -> _Parser:
     s.add_argument("--tol", type=float, default=0.05, help="tolerance line and insensitivity level (default 0.05)")
 
     sub.add_parser("kinds", help="list the shaper kinds")
+
+    i = sub.add_parser("identify", help="identify lightly damped modes in a CSV or Klipper file")
+    i.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
+    i.add_argument("--input", help="input column (omit for output-only data)")
+    i.add_argument("--output", help="output column (Klipper logs: see --axis)")
+    i.add_argument("--axis", default="auto", choices=("auto", "x", "y", "z", "all"), help="Klipper log axis")
+    i.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
+    i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
+    i.add_argument("--json", action="store_true", help="machine-readable output")
+
+    c = sub.add_parser("calibrate", help="identify modes and recommend a shaper with firmware config lines")
+    c.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
+    c.add_argument("--input", help="input column (omit for output-only data)")
+    c.add_argument("--output", help="output column")
+    c.add_argument("--axis", default="auto", choices=("auto", "x", "y", "z", "all"), help="Klipper log axis")
+    c.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
+    c.add_argument("--vtol", type=float, default=0.05, help="tolerable worst-case vibration (default 0.05)")
+    c.add_argument("--margin", type=float, default=0.05, help="extra frequency uncertainty (default 0.05)")
+    c.add_argument("--plot", help="write the calibration plot (png, pdf, svg)")
     return parser
+
+
+def _n_modes(text: str) -> Any:
+    if text == "auto":
+        return "auto"
+    try:
+        n = int(text)
+    except ValueError:
+        raise ValueError(f"--modes must be a positive integer or 'auto', got {text!r}") from None
+    if n < 1:
+        raise ValueError(f"--modes must be a positive integer or 'auto', got {n}")
+    return n
+
+
+def _identify_cmd(args: argparse.Namespace) -> int:
+    from .identify import calibrate, load_csv
+    from .identify.estimators import identify
+
+    if args.command == "calibrate":
+        cal = calibrate(args.file, input=args.input, output=args.output, axis=args.axis,
+                        n_modes=_n_modes(args.modes), vtol=args.vtol, margin=args.margin)
+        if args.plot:  # everything computed: only now write
+            import matplotlib
+
+            matplotlib.use("Agg")
+            from .identify.plots import calibration_plot
+
+            fig = calibration_plot(cal)
+            _save_atomic(fig, args.plot)
+        print(cal.summary())
+        if args.plot:
+            print(f"wrote {args.plot}")
+        return 0
+    ds = load_csv(args.file)
+    nm = _n_modes(args.modes)
+    if args.input is not None:
+        if args.output is None:
+            raise ValueError("--output is required with --input")
+        r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm, method=args.method or "oe")
+    else:
+        if ds.kind == "klipper_raw":
+            y, slope = ds.projection(args.axis), 2.0
+        elif args.output is not None:
+            y, slope = ds.column(args.output), 0.0
+        else:
+            raise ValueError("--output is required (or --input and --output) for CSV data")
+        method = args.method or "psd"
+        nm = (2 if method == "psd" else 1) if nm == "auto" else nm
+        r = identify(ds.t, None, y, n_modes=nm, method=method, excitation_slope=slope,
+                     band=(5.0, min(133.0, 0.45 * ds.fs)) if method == "psd" else None)
+    if args.json:
+        print(json.dumps({"method": r.method, "modes": [
+            {"omega": m.omega, "freq_hz": m.freq_hz, "zeta": m.zeta, "omega_95": list(iv.omega), "zeta_95": list(iv.zeta)}
+            for m, iv in zip(r.modes, r.intervals)], "fit_percent": r.fit_percent, "whiteness_p": r.whiteness_p}, indent=2))
+    else:
+        print(r.summary())
+    return 0
+
+
+def _save_atomic(fig: Any, out: str) -> None:
+    import os
+    import tempfile
+    from pathlib import Path
+
+    import matplotlib.pyplot as plt
+
+    target = Path(out)
+    fd, tmp = tempfile.mkstemp(suffix=target.suffix, dir=target.parent if str(target.parent) else ".")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
+        os.replace(tmp, target)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
 
 
 def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
@@ -106,6 +201,8 @@ def _run(argv: Sequence[str] | None) -> int:
     args = _build_parser().parse_args(argv)
     from .shapers.design import KINDS, design
 
+    if args.command in ("identify", "calibrate"):
+        return _identify_cmd(args)
     if args.command == "kinds":
         for name, spec in KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())

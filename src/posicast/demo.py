@@ -326,6 +326,9 @@ def build_report(out: str | Path) -> Path:
     _ei_section(report)
     _spectra_section(report)
     _simulation_section(report)
+    from .identify.report import identification_section
+
+    identification_section(report)
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
     return report.write()
 

@@ -1,0 +1,151 @@
+"""Report section for ``make demo``: seed 002 Tables 1-3 re-run, method comparison, Klipper calibration."""
+
+from __future__ import annotations
+
+import html
+import math
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..modes import Mode
+from .estimators import identify
+from .recommend import calibrate
+from .synthetic import klipper_log, synthetic
+
+__all__ = ["identification_section", "trial_stats", "SEED_MODE"]
+
+SEED_MODE = Mode.from_hz(28.0, 0.05)  # seed 002 section 3.2.1: 28 Hz, zeta 0.05, 400 Hz
+
+
+def trial_stats(method: str, input: str, n: int, noise: float, trials: int, *, input_noise: float = 0.0,
+                period: float | None = None, mode: Mode = SEED_MODE, nk: int = 0) -> dict[str, Any]:
+    """Seeded trials of one scenario: relative errors of omega and zeta, and interval coverage."""
+    ew, ez, cw, cz, both, fail = [], [], 0, 0, 0, 0
+    for s in range(trials):
+        d = synthetic(mode, input, n=n, noise=noise, input_noise=input_noise, seed=s, period=period)
+        try:
+            r = identify(d.t, d.u, d.y, method=method, **({"nk": nk} if method == "arx" else {}))
+        except ValueError:
+            fail += 1
+            continue
+        m, iv = r.modes[0], r.intervals[0]
+        ew.append(m.omega / mode.omega - 1)
+        ez.append(m.zeta / mode.zeta - 1)
+        inw = iv.omega[0] <= mode.omega <= iv.omega[1]
+        inz = iv.zeta[0] <= mode.zeta <= iv.zeta[1]
+        cw, cz, both = cw + inw, cz + inz, both + (inw and inz)
+    ok = max(len(ew), 1)
+    a_w, a_z = np.array(ew or [np.nan]), np.array(ez or [np.nan])
+    return {"w_bias": float(np.mean(a_w)), "w_sd": float(np.std(a_w)), "w_rms": float(np.sqrt(np.mean(a_w**2))),
+            "z_bias": float(np.mean(a_z)), "z_sd": float(np.std(a_z)), "cov_w": cw / ok, "cov_z": cz / ok,
+            "cov_both": both / ok, "fail": fail, "n": len(ew)}
+
+
+def _pm(st: dict[str, Any], key: str) -> str:
+    b, s = st[f"{key}_bias"], st[f"{key}_sd"]
+    return "–" if not math.isfinite(b) else f"{100 * b:+.2f} ± {100 * s:.2f}"
+
+
+def identification_section(report: Any, trials: int = 30, acceptance_trials: int = 100) -> None:
+    """Add the identification section (issue #5) to a :class:`posicast.io.report.Report`."""
+    import matplotlib.pyplot as plt
+
+    report.section("Identification of lightly damped modes (seed 002 sections 3-4)")
+    report.paragraph(
+        "True system: seed 002 eq. 16, 28 Hz, ζ = 0.05, sampled exactly (zero-order hold) at 400 Hz; 12-bit "
+        "quantisation; white output noise of the stated fraction of the output's peak-to-peak range (standard "
+        "deviation). Errors are relative, mean ± standard deviation over seeded trials, in percent. "
+        "ARX = seed 002 eq. 19–25 (regressors u(k), u(k−1), −y(k−1), −y(k−2)); OE = posicast's default "
+        "(output-error, variable projection). Coverage: fraction of trials whose 95 % interval contains the true "
+        "ω (resp. ζ). The seed's RMS-error column (model-response error, units not stated) is not reproducible; "
+        "parameter errors are reported instead.")
+    rows = []
+    scen = [("Table 1", "step", n, 0.01) for n in (10, 20, 40, 100, 200, 400)]
+    scen += [("Table 2", k, 20, 0.01) for k in ("impulse", "step", "ramp", "harmonic")]
+    scen += [("Table 3", "step", 20, z) for z in (0.0, 0.01, 0.03, 0.05)]
+    scen += [("Table 3, 400 samples", "step", 400, z) for z in (0.01, 0.05)]
+    for tab, inp, n, noise in scen:
+        a = trial_stats("arx", inp, n, noise, trials)
+        o = trial_stats("oe", inp, n, noise, trials) if n >= 16 else None
+        rows.append([tab, inp, n, f"{100 * noise:.0f} %", _pm(a, "w"), _pm(a, "z"), f"{a['fail']}/{trials}",
+                     _pm(o, "w") if o else "n/a (< 16 samples)", _pm(o, "z") if o else "–",
+                     f"{o['cov_w']:.2f} / {o['cov_z']:.2f}" if o else "–"])
+    report.table(["seed", "input", "samples", "noise", "ARX ω err %", "ARX ζ err %", "ARX failed",
+                  "OE ω err %", "OE ζ err %", "OE coverage ω / ζ"], rows)
+    report.paragraph(
+        "ARX failures are trials where the least-squares poles are real or unstable (the seed's \"poor "
+        "classification of the system\"). ARX is biased under output noise because the noisy outputs are "
+        "regressors; its ζ error grows with the noise while OE's stays centred.")
+
+    report.paragraph(f"<b>Acceptance scenario</b> (issue #5, item 1–2): 2000 samples (5 s at 400 Hz), 5 % output "
+                     f"noise, {acceptance_trials} seeded trials per input. 'step' = unit step every 1 s, alternating "
+                     "up and down (a back-and-forth move); a single step carries only ~0.3 s of ringing.")
+    rows = []
+    for label, inp, per in (("step (alternating, 1 s)", "step", 1.0), ("random binary", "random_binary", None),
+                            ("chirp 0.5–160 Hz", "chirp", None)):
+        o = trial_stats("oe", inp, 2000, 0.05, acceptance_trials, period=per)
+        a = trial_stats("arx", inp, 2000, 0.05, acceptance_trials, period=per)
+        rows.append([label, _pm(o, "w"), f"{100 * o['w_rms']:.3f}", _pm(o, "z"), f"{o['cov_w']:.2f}",
+                     f"{o['cov_z']:.2f}", f"{o['cov_both']:.2f}", _pm(a, "w"), _pm(a, "z"), f"{a['cov_z']:.2f}"])
+    report.table(["input", "OE ω err %", "OE ω RMS %", "OE ζ err %", "cov ω", "cov ζ", "cov both",
+                  "ARX ω err %", "ARX ζ err %", "ARX cov ζ"], rows)
+    single = trial_stats("oe", "step", 800, 0.05, acceptance_trials)
+    eiv = trial_stats("oe", "random_binary", 2000, 0.05, 30, input_noise=0.05)
+    report.note(
+        f"Limits, measured: a <i>single</i> step (800 samples, 5 % noise) gives OE ζ error {_pm(single, 'z')} % "
+        f"(mean ± sd, {acceptance_trials} trials) — the bias criterion needs repeated steps or a richer input. "
+        f"With 5 % noise on the recorded <i>input</i> as well (seed 002's convention, errors-in-variables), OE on "
+        f"random binary data gives ζ error {_pm(eiv, 'z')} %, coverage {eiv['cov_z']:.2f}: log the command, "
+        "not a noisy measurement of it.")
+
+    # one data set, every method
+    d = synthetic(SEED_MODE, "random_binary", n=2000, noise=0.05, seed=7)
+    rows = []
+    for label, kw in (("OE (default)", {"method": "oe"}), ("ARX, seed eq. 21", {"method": "arx"}),
+                      ("ARX, u(k−1), u(k−2)", {"method": "arx", "nk": 1}),
+                      ("frequency domain, seed 3.2.2 with refinement", {"method": "freq"}),
+                      ("frequency domain, no refinement", {"method": "freq", "refine": False})):
+        try:
+            r = identify(d.t, d.u, d.y, **kw)
+        except ValueError as exc:
+            rows.append([label, "failed", str(exc), "", "", "", ""])
+            continue
+        m, iv = r.modes[0], r.intervals[0]
+        rows.append([label, m.freq_hz, f"[{iv.freq_hz[0]:.3f}, {iv.freq_hz[1]:.3f}]", m.zeta,
+                     f"[{iv.zeta[0]:.4f}, {iv.zeta[1]:.4f}]", r.fit_percent, r.whiteness_p])
+    ring = synthetic(SEED_MODE, "impulse", n=400, noise=0.02, seed=7, delay=0)
+    r = identify(ring.t[1:], None, ring.y[1:], method="decay")
+    m, iv = r.modes[0], r.intervals[0]
+    rows.append(["free decay (matrix pencil + OE), impulse ring-down", m.freq_hz,
+                 f"[{iv.freq_hz[0]:.3f}, {iv.freq_hz[1]:.3f}]", m.zeta, f"[{iv.zeta[0]:.4f}, {iv.zeta[1]:.4f}]",
+                 r.fit_percent, r.whiteness_p])
+    report.paragraph("Every method on one record (random binary input, 2000 samples, 5 % noise; truth 28 Hz, "
+                     "ζ = 0.05). Seed 002 eq. 26 is the −3 dB bandwidth of a two-pole resonator only when the "
+                     "resonance sits at fs/4; posicast inverts the exact bandwidth for any resonance angle.")
+    report.table(["method", "f [Hz]", "95 % f", "ζ", "95 % ζ", "fit %", "whiteness p"], rows, digits=4)
+
+    # Klipper two-mode calibration
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "resonance_x.csv"
+        truth = [Mode.from_hz(42.0, 0.08), Mode.from_hz(63.0, 0.06)]
+        klipper_log(path, truth, gains=[0.6, 0.4], hz_per_sec=4.0, density=150.0, seed=1, jitter=2e-5)
+        cal = calibrate(path)
+    rows = [[f"{t.freq_hz:.1f} / {t.zeta:.3f}", m.freq_hz, f"{100 * (m.omega / t.omega - 1):+.2f}", m.zeta,
+             f"{100 * (m.zeta / t.zeta - 1):+.1f}"] for t, m in zip(truth, cal.modes)]
+    report.paragraph("Output-only calibration of a synthetic Klipper log (3200 Hz, TEST_RESONANCES sweep 5–133 Hz "
+                     "at 4 Hz/s, square-wave acceleration 75 mm/s²/Hz, noise 150 mm/s²/√Hz, jittered time stamps): "
+                     "Welch PSD fitted by a coherent two-mode model on an f² excitation. Klipper itself finds the "
+                     "peak frequency and assumes ζ = 0.1.")
+    report.table(["true f [Hz] / ζ", "found f [Hz]", "f err %", "found ζ", "ζ err %"], rows)
+    report.table(["candidate", "worst-case V", "duration [ms]", "Klipper smoothing [mm]"],
+                 [[c.label, c.worst_vibration, 1000 * c.duration, c.smoothing] for c in cal.candidates[:8]])
+    report.paragraph("<br>".join(html.escape(r) for r in cal.reasoning) + "<pre>"
+                     + html.escape("\n".join(cal.config)) + "</pre>")
+    from .plots import calibration_plot
+
+    report.figure(calibration_plot(cal), "identify_klipper", "Klipper log: PSD with the fitted modal model, and "
+                  "residual vibration of the best candidates (orange: 95 % frequency intervals).")
+    plt.close("all")
