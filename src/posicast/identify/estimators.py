@@ -351,7 +351,10 @@ def _start(model: "_OEModel", u: np.ndarray | None, y: np.ndarray, fs: float, n_
             c = float(r @ r)
             if best is None or c < best[0]:
                 best = (c, (fp, zp))
-        assert best is not None
+        if best is None:
+            raise ValueError(
+                f"n_modes={full_n}: the spectrum has fewer distinct peaks than modes to fit; ask for fewer modes"
+            )
         chosen.append(best[1])
     model.n = full_n
     return np.array([[math.log(2 * math.pi * a), b] for a, b in chosen]).ravel()
@@ -597,7 +600,8 @@ def _psd(y: np.ndarray, fs: float, n_modes: int, *, band: tuple[float, float] | 
         if nperseg is None:
             nperseg = 1 << int(np.floor(np.log2(max(n // 8, 64))))
         freqs, psd = signal.welch(y - np.mean(y), fs=fs, nperseg=min(nperseg, n), detrend="constant")
-    assert freqs is not None and psd is not None
+    if freqs is None or psd is None:
+        raise ValueError("psd: give both freqs and psd, or neither")
     lo, hi = band if band is not None else (max(freqs[1], 2.0), 0.45 * fs)
     sel = (freqs >= lo) & (freqs <= hi) & (psd > 0)
     f, P = freqs[sel], psd[sel]
@@ -666,7 +670,8 @@ def _psd(y: np.ndarray, fs: float, n_modes: int, *, band: tuple[float, float] | 
                                     x_scale="jac", xtol=1e-10, ftol=1e-12)
         if best is None or r2.cost < best.cost:
             best = r2
-    assert best is not None
+    if best is None:  # the start loop always runs at least once
+        raise RuntimeError("psd fit: no starting point could be evaluated")
     x = best.x
     e = resid2(x)
     J = _numjac(resid2, x)
@@ -804,6 +809,7 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
         scores[n] = bic
         if best is None or bic < best[1]:
             best = (r, bic)
-    assert best is not None
+    if best is None:
+        raise ValueError(f"max_modes must be >= 1, got {max_modes}")
     best[0].order_scores = scores
     return best[0]

@@ -387,7 +387,8 @@ def stability(h: Any, *, ignore: Any = None) -> Stability:
                 f"C_D = {ds.abscissa:.4g})",
             )
     unst = _search_right_of(q, 0.0, ignore)
-    assert unst is not None  # gamma(0) > 0 here: retarded, or strongly stable neutral
+    if unst is None:  # cannot happen: gamma(0) > 0 for retarded or strongly stable neutral h
+        raise RuntimeError("no root bound at Re s = 0; please report this quasi-polynomial")
     if unst.size:
         return Stability(
             False, kind, unst, ds,
