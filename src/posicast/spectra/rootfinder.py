@@ -51,6 +51,7 @@ __all__ = ["roots", "Roots", "RootFindingError", "BudgetExceeded", "as_quasipoly
 
 _EPS = np.finfo(float).eps
 _TWO_PI = 2.0 * math.pi
+_MAX_GRID = 2e7  # grid points held at once (complex: 320 MB)
 
 
 class RootFindingError(RuntimeError):
@@ -300,7 +301,11 @@ def _grid_candidates(ev: _Evaluator, rect: tuple[float, float, float, float], st
     x = np.linspace(a, b, nx)
     y = np.linspace(c, d, ny)
     S = x[None, :] + 1j * y[:, None]
-    H, _ = ev.value(S)
+    # evaluate in blocks of rows: the per-delay intermediates stay near 1e6 points
+    H = np.empty(S.shape, dtype=complex)
+    rows = max(1, int(1_000_000 // (nx * max(1, ev.q.coeffs.shape[0]))))
+    for i in range(0, ny, rows):
+        H[i : i + rows], _ = ev.value(S[i : i + rows])
     with np.errstate(divide="ignore", invalid="ignore"):
         dh = np.angle(H[:, 1:] / H[:, :-1])
         dv = np.angle(H[1:, :] / H[:-1, :])
@@ -647,11 +652,11 @@ def roots(
     step = _grid_step(q, rect)
     nx, ny = _grid_shape(rect, step)
     n_grid = nx * ny
-    if n_grid > max_evaluations / 2:
+    if n_grid > min(max_evaluations / 2, _MAX_GRID):
         raise BudgetExceeded(
             f"region {rect} needs a {n_grid:.3g}-point grid (step {step:.3g} from the largest delay "
-            f"{float(q.delays[-1]):.4g}), over half of max_evaluations={max_evaluations:.3g}; "
-            "shrink the region or raise max_evaluations"
+            f"{float(q.delays[-1]):.4g}), over the budget of {min(max_evaluations / 2, _MAX_GRID):.3g} points "
+            "(half of max_evaluations, at most 2e7 for memory); split or shrink the region"
         )
     count, used, shifted = _count_with_shifts(ev, rect, step)
     solver = _Solver(ev, used, step)
