@@ -31,6 +31,13 @@ def _as_list(items: Any, name: str, types: tuple[type, ...]) -> list[Any]:
     return seq
 
 
+def _loops_with_labels(loop: Any, labels: Sequence[str] | None) -> list[Loop]:
+    loops = _as_list(loop, "loop", (Loop,))
+    if labels is not None and len(labels) != len(loops):
+        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    return loops
+
+
 def _omega(omega: Any) -> np.ndarray:
     w = v.real_array(omega, "omega").reshape(-1)
     if w.size < 2:
@@ -141,9 +148,7 @@ def nyquist_plot(
     -------
     fig, ax
     """
-    loops = _as_list(loop, "loop", (Loop,))
-    if labels is not None and len(labels) != len(loops):
-        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    loops = _loops_with_labels(loop, labels)
     if ms is not None and ms is not False:
         ms = v.positive(ms, "ms")
         if ms < 1.0:
@@ -205,9 +210,7 @@ def spectrum_plot(
     -------
     fig, ax
     """
-    loops = _as_list(loop, "loop", (Loop,))
-    if labels is not None and len(labels) != len(loops):
-        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    loops = _loops_with_labels(loop, labels)
     from ..spectra import roots
 
     import matplotlib.pyplot as plt
