@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -194,7 +194,7 @@ def recommend(ident: Identification, *, vtol: float = 0.05, margin: float = 0.05
     rest = sorted([c for c in cands if c.worst_vibration > vtol], key=lambda c: c.worst_vibration)
     ranked = ok + rest
     best = ranked[0]
-    why = [f"modes: " + "; ".join(f"{m.freq_hz:.2f} Hz [{iv.freq_hz[0]:.2f}, {iv.freq_hz[1]:.2f}], "
+    why = ["modes: " + "; ".join(f"{m.freq_hz:.2f} Hz [{iv.freq_hz[0]:.2f}, {iv.freq_hz[1]:.2f}], "
                                    f"zeta {m.zeta:.3f} [{iv.zeta[0]:.3f}, {iv.zeta[1]:.3f}]" for m, iv in zip(modes, ivs)),
            f"each frequency interval widened by +-{100 * margin:.0f} %; worst-case residual vibration over the boxes, "
            f"weighted by mode share {np.round(weights, 2).tolist()}"]

@@ -82,7 +82,7 @@ def _c(D: DiscreteShaper, name: str) -> str:
         f" *   static float {name}_buf[{U}_LEN];",
         f" *   static unsigned {name}_pos = 0;",
         f" *   float {name}_step(float x) {{",
-        f" *       double y = 0.0;",
+        " *       double y = 0.0;",
         f" *       unsigned k, i = {name}_pos;",
         f" *       {name}_buf[i] = x;                      newest sample at i",
         f" *       for (k = 0; k < {U}_LEN; ++k) {{",
@@ -98,7 +98,7 @@ def _c(D: DiscreteShaper, name: str) -> str:
     ]
     if D.b is not None and D.a is not None:
         out += [
-            f"/* IIR section in parallel (Tustin, prewarped at the mode), powers of z^-1, a[0] = 1 */",
+            "/* IIR section in parallel (Tustin, prewarped at the mode), powers of z^-1, a[0] = 1 */",
             f"#define {U}_IIR_LEN {D.b.size}",
             f"static const float {name}_iir_b[{D.b.size}] = {{ {_c_floats(D.b)} }};",
             f"static const float {name}_iir_a[{D.a.size}] = {{ {_c_floats(D.a)} }};",

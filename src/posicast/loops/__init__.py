@@ -20,6 +20,7 @@ from .loop import (
 )
 from .plots import bode_plot, nyquist_plot, spectrum_plot
 
-from . import loop as _loop
-
-__all__ = list(_loop.__all__) + ["bode_plot", "nyquist_plot", "spectrum_plot"]
+__all__ = [
+    "Loop", "feedforward", "control_action", "inverse_shaper", "Margins", "NyquistResponse",
+    "ARCHITECTURES", "INPUTS", "removable_points", "bode_plot", "nyquist_plot", "spectrum_plot",
+]

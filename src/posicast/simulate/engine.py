@@ -670,7 +670,6 @@ def _check_mode_nyquist(tf: TransferFunction, rate: float) -> None:
 
 
 def _sampled(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], Ts: float, m: int, cm: str) -> dict[str, np.ndarray]:
-    N = sig["w"].size
     coarse = {k: v[::m] for k, v in sig.items()} if m > 1 else sig
     if S is None or loop.architecture == "feedforward":
         r = coarse["w"]
