@@ -364,8 +364,36 @@ def _start(model: "_OEModel", u: np.ndarray | None, y: np.ndarray, fs: float, n_
 
 
 def _oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, *, covariance: str,
-        feedthrough: bool, offset: bool, initial_state: bool, start: Sequence[Mode] | None = None,
+        feedthrough: bool | str, offset: bool | str, initial_state: bool | str, start: Sequence[Mode] | None = None,
         method: str = "oe") -> tuple[Identification, float, int]:
+    terms = {"feedthrough": feedthrough, "offset": offset, "initial_state": initial_state}
+    auto = [name for name, val in terms.items() if val == "auto"]
+    if auto:
+        # Nuisance terms chosen by the data: fit without the "auto" ones (a position output of a
+        # system at rest under a held input has no direct term, offset or initial state), then
+        # F-test each of them at the fitted poles (one projection each, 0.1 % level) and refit
+        # with the ones the data ask for.  Fitting unneeded free-response columns costs zeta
+        # bias: on seed 002's single step at 5 % noise +1.3 % with them, +0.65 % without.
+        base = {name: (False if val == "auto" else bool(val)) for name, val in terms.items()}
+        out, rss, k = _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, **base)
+        th = np.array([[math.log(m.omega), m.zeta] for m in out.modes]).ravel()
+        n_lin = k - th.size
+        chosen = dict(base)
+        for name in auto:
+            trial = dict(base)
+            trial[name] = True
+            e1, _, n_lin1 = _OEModel(u, y, 1.0 / fs, n_modes, **trial).project(th)
+            extra = n_lin1 - n_lin
+            dof = y.size - k - extra
+            if extra <= 0 or dof <= 0:
+                continue
+            rss1 = float(e1 @ e1)
+            F = ((rss - rss1) / extra) / max(rss1 / dof, 1e-300)
+            if F > stats.f.ppf(0.999, extra, dof):
+                chosen[name] = True
+        if chosen == base:
+            return out, rss, k
+        return _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, **chosen)
     h = 1.0 / fs
     model = _OEModel(u, y, h, n_modes, feedthrough=feedthrough, offset=offset, initial_state=initial_state)
     if start is None:
@@ -718,8 +746,8 @@ def _check_signals(t: Any, u: Any, y: Any, need_u: bool) -> tuple[np.ndarray, np
 
 
 def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe", *,
-             covariance: str = "auto", feedthrough: bool = True, offset: bool = True,
-             initial_state: bool = True, max_modes: int = 4, refine: bool = True,
+             covariance: str = "auto", feedthrough: bool | str = "auto", offset: bool | str = "auto",
+             initial_state: bool | str = "auto", max_modes: int = 4, refine: bool = True,
              band: tuple[float, float] | None = None, excitation_slope: float = 0.0, nk: int = 0) -> Identification:
     """Identify lightly damped modes from sampled data.
 
@@ -737,8 +765,14 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
         See the module docstring.  ``"arx"`` and ``"freq"`` fit one mode.
     covariance : {"auto", "gauss-newton", "hac"}
         Interval method; ``"auto"`` switches to Newey-West when the residual is coloured.
-    feedthrough, offset, initial_state : bool
-        Terms of the OE model (all on by default).
+    feedthrough, offset, initial_state : bool or "auto"
+        Nuisance terms of the OE model: a direct input-to-output term, a constant
+        offset, a free response from a nonzero initial state.  ``"auto"``
+        (default) fits without them and adds each only when an F-test at the
+        fitted poles asks for it (an acceleration output has a direct term; a
+        record that starts moving has an initial state).  Fitting unneeded
+        terms costs ζ bias: +1.3 % instead of +0.65 % on seed 002's single
+        step at 5 % noise.
     refine : bool
         ``"freq"``: run seed 002's iterative refinement.
     band : (float, float), optional
@@ -785,8 +819,8 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
     if method == "freq":
         if n_modes != 1:
             raise ValueError("method='freq' (seed 002 section 3.2.2) fits one mode; n_modes must be 1")
-        return _freq(t, uu, yy, fs, refine=refine, covariance=covariance, feedthrough=feedthrough,
-                     offset=offset, initial_state=initial_state)
+        return _freq(t, uu, yy, fs, refine=refine, covariance=covariance, feedthrough=feedthrough is True,
+                     offset=offset is not False, initial_state=initial_state is not False)
     if method == "psd":
         if band is not None:
             lo, hi = (v.positive(band[0], "band[0]"), v.positive(band[1], "band[1]"))
@@ -796,9 +830,12 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
         return _psd(yy, fs, int(n_modes), band=band, excitation_slope=v.real(excitation_slope, "excitation_slope"))
     if method == "decay":
         start = _matrix_pencil(yy - np.mean(yy), 1.0 / fs, int(n_modes))
-        out, _, _ = _oe(t, None, yy, fs, len(start), covariance=covariance, feedthrough=False, offset=offset,
-                        initial_state=True, start=start, method="decay")
+        out, _, _ = _oe(t, None, yy, fs, len(start), covariance=covariance, feedthrough=False,
+                        offset=offset is not False, initial_state=True, start=start, method="decay")
         return out
+    for name, val in (("feedthrough", feedthrough), ("offset", offset), ("initial_state", initial_state)):
+        if val != "auto" and not isinstance(val, bool):
+            raise ValueError(f"{name} must be True, False or 'auto', got {val!r}")
     kw = dict(covariance=covariance, feedthrough=feedthrough, offset=offset, initial_state=initial_state)
     if not auto:
         return _oe(t, uu, yy, fs, int(n_modes), **kw)[0]

@@ -82,22 +82,23 @@ def identification_section(report: Any, trials: int = 30, acceptance_trials: int
 
     report.paragraph(f"<b>Acceptance scenario</b> (issue #5, item 1–2): 2000 samples (5 s at 400 Hz), 5 % output "
                      f"noise, {acceptance_trials} seeded trials per input. 'step' = unit step every 1 s, alternating "
-                     "up and down (a back-and-forth move); a single step carries only ~0.3 s of ringing.")
+                     "up and down (a back-and-forth move); 'single step' = seed 002's own experiment, one step from "
+                     "rest, 800 samples.")
     rows = []
-    for label, inp, per in (("step (alternating, 1 s)", "step", 1.0), ("random binary", "random_binary", None),
-                            ("chirp 0.5–160 Hz", "chirp", None)):
-        o = trial_stats("oe", inp, 2000, 0.05, acceptance_trials, period=per)
-        a = trial_stats("arx", inp, 2000, 0.05, acceptance_trials, period=per)
+    for label, inp, per, n in (("single step (800 samples)", "step", None, 800),
+                               ("step (alternating, 1 s)", "step", 1.0, 2000),
+                               ("random binary", "random_binary", None, 2000), ("chirp 0.5–160 Hz", "chirp", None, 2000)):
+        o = trial_stats("oe", inp, n, 0.05, acceptance_trials, period=per)
+        a = trial_stats("arx", inp, n, 0.05, acceptance_trials, period=per)
         rows.append([label, _pm(o, "w"), f"{100 * o['w_rms']:.3f}", _pm(o, "z"), f"{o['cov_w']:.2f}",
                      f"{o['cov_z']:.2f}", f"{o['cov_both']:.2f}", _pm(a, "w"), _pm(a, "z"), f"{a['cov_z']:.2f}"])
     report.table(["input", "OE ω err %", "OE ω RMS %", "OE ζ err %", "cov ω", "cov ζ", "cov both",
                   "ARX ω err %", "ARX ζ err %", "ARX cov ζ"], rows)
-    single = trial_stats("oe", "step", 800, 0.05, acceptance_trials)
     eiv = trial_stats("oe", "random_binary", 2000, 0.05, 30, input_noise=0.05)
     report.note(
-        f"Limits, measured: a <i>single</i> step (800 samples, 5 % noise) gives OE ζ error {_pm(single, 'z')} % "
-        f"(mean ± sd, {acceptance_trials} trials) — the bias criterion needs repeated steps or a richer input. "
-        f"With 5 % noise on the recorded <i>input</i> as well (seed 002's convention, errors-in-variables), OE on "
+        "The OE model's nuisance terms (direct term, offset, initial state) are added only when an F-test at the "
+        "fitted poles asks for them; forcing them in on the single step gave a ζ bias of +1.3 %. "
+        f"Limits, measured: with 5 % noise on the recorded <i>input</i> as well (seed 002's convention, errors-in-variables), OE on "
         f"random binary data gives ζ error {_pm(eiv, 'z')} %, coverage {eiv['cov_z']:.2f}: log the command, "
         "not a noisy measurement of it.")
 
