@@ -586,3 +586,14 @@ def test_spectrum_plot():
     assert sum("zeros of S" in lb for lb in labels) == 2
     assert sum("closed-loop poles" in lb for lb in labels) == 2
     plt.close(fig)
+
+
+def test_bode_plot_refuses_nonpositive_frequencies():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from posicast.loops import bode_plot
+
+    loop = posicast.control_action(G=([1.0], [1.0, 1.0, 0.0]), C=2.0)
+    with pytest.raises(ValueError, match="omega must be > 0"):
+        bode_plot(loop, "w", "y", [-1.0, 1.0])

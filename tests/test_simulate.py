@@ -128,6 +128,16 @@ def test_sampled_delay_free_loop_matches_state_space_reference():
         xc = Ac @ xc + Bc[:, 0] * e
         xg = Ag @ xg + Bg[:, 0] * v
     assert np.max(np.abs(r.z - z)) < 1e-9
+    # the load y = (F G) u, G's pole at 0 cancelled by F's zero, as a state recursion from the discretised
+    # state space (not a transfer polynomial)
+    FG = signal.tf2ss([1.0], np.polymul([1.0, 0.6, 100.0], [1.0, 1.0]))
+    Af, Bf, Cf, _, _ = signal.cont2discrete(FG, 1e-3, method="zoh")
+    xf = np.zeros(Af.shape[0])
+    y = np.zeros(t.size)
+    for k in range(t.size):
+        y[k] = (Cf @ xf).item()
+        xf = Af @ xf + Bf[:, 0] * r.u[k]
+    assert np.max(np.abs(r.y - y)) < 1e-11
 
 
 @pytest.mark.parametrize(

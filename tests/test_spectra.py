@@ -301,3 +301,9 @@ def test_budget_fails_fast():
         roots(h, (-20, 5, 0, 5000), max_evaluations=1000)
     with pytest.raises(ValueError, match="max_evaluations"):
         roots(h, (-20, 5, 0, 50), max_evaluations=-1)
+    with pytest.raises(ValueError, match="ignore"):
+        roots(h, (-20, 5, 0, 50), ignore=[np.nan])
+    with pytest.raises(ValueError, match="max_radius"):
+        spectral_abscissa(h, max_radius=np.nan)
+    with pytest.raises(ValueError, match="alpha"):
+        root_bound(h, np.inf)

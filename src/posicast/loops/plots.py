@@ -38,10 +38,12 @@ def _loops_with_labels(loop: Any, labels: Sequence[str] | None) -> list[Loop]:
     return loops
 
 
-def _omega(omega: Any) -> np.ndarray:
+def _omega(omega: Any, positive: bool = False) -> np.ndarray:
     w = v.real_array(omega, "omega").reshape(-1)
     if w.size < 2:
         raise ValueError("omega must contain at least 2 frequencies")
+    if positive and np.any(w <= 0):
+        raise ValueError("omega must be > 0 rad/s on a Bode plot's logarithmic axis")
     return w
 
 
@@ -82,7 +84,7 @@ def bode_plot(
         first = next((it for it in seq if isinstance(it, Loop)), None)
         w = first.default_omega() if first is not None else np.logspace(-2, 3, 2000)
     else:
-        w = _omega(omega)
+        w = _omega(omega, positive=True)
     import matplotlib.pyplot as plt
 
     if ax is None:

@@ -679,7 +679,12 @@ def roots(
     pts[near_real] = pts[near_real].real
     removed = []
     if ignore is not None:
-        ign = np.atleast_1d(np.asarray(ignore, dtype=complex))
+        try:
+            ign = np.atleast_1d(np.asarray(ignore, dtype=complex)).ravel()
+        except (TypeError, ValueError) as exc:
+            raise TypeError("ignore must be an array of complex numbers") from exc
+        if not np.all(np.isfinite(ign)):
+            raise ValueError("ignore must contain finite points (no NaN or inf)")
         for p in ign:
             if pts.size == 0:
                 break

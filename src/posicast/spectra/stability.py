@@ -298,6 +298,10 @@ def spectral_abscissa(h: Any, *, ignore: Any = None, max_radius: float = 2e4) ->
     -1.0
     """
     q = _prepared(h)
+    if isinstance(max_radius, bool) or not isinstance(max_radius, (int, float)) or not (
+        math.isfinite(max_radius) and max_radius > 0
+    ):
+        raise ValueError(f"max_radius must be a finite number > 0, got {max_radius!r}")
     if q.kind == "neutral":
         ds = difference_spectrum(q)
         hale = ds.hale_abscissa
