@@ -307,3 +307,66 @@ def test_budget_fails_fast():
         spectral_abscissa(h, max_radius=np.nan)
     with pytest.raises(ValueError, match="alpha"):
         root_bound(h, np.inf)
+
+
+# ---------------------------------------------------------------------------- regressions found by issue #6
+def _crane_loop(structure: str, kind: str, kp: float, kd: float) -> posicast.Loop:
+    case = posicast.cases.ALL["gantry_crane"]
+    return case.loop(structure, posicast.design(kind, case.mode), C=([kd, kp], [1.0]))
+
+
+def test_exact_root_at_zero_of_every_term_is_found():
+    """Crane, inverse DeZV (seed 001 Table 1 gains): every term of the characteristic vanishes at s = 0.
+
+    Newton reaches that simple root as z ~ 1e-32, where |h| and its term scale are both
+    rounding; it used to be rejected, and the reconciliation split the box until the
+    budget ran out (19 s, BudgetExceeded).  The root is now snapped onto 0.
+    """
+    loop = _crane_loop("inverse_shaper", "dezv", 23.3, 0.465)
+    t0 = time.perf_counter()
+    r = roots(loop.characteristic, (-1, 1, -1, 50), ignore=loop.cancelled)
+    assert r.count == 0 and r.removed.size == 1 and r.removed[0] == 0
+    assert loop.stability().stable
+    assert time.perf_counter() - t0 < 2.0
+
+
+def test_double_root_at_zero_is_not_counted_twice():
+    """Control-action DtZV: the triangular kernel puts a double removable root at s = 0.
+
+    Newton stalls about sqrt(eps) away from a double root (here 1.3e-6), farther than
+    the merge tolerance, so the same double root used to be found twice ("argument
+    principle counts 3 but 4 roots were refined").  A point inside a cluster's
+    certified Pellet disk is now recognised as one of its roots.
+    """
+    loop = _crane_loop("control_action", "dtzv", 0.188956, -0.667836)
+    st = loop.stability()
+    assert st.stable
+    r = roots(loop.characteristic, (-0.3, 1.0, -0.5, 100))
+    assert r.count == 3 and list(r.multiplicities) == [2, 1]
+
+
+def test_stability_budget_is_passed_through():
+    loop = _crane_loop("control_action", "dtazv", 5.041e11, -102.2)
+    t0 = time.perf_counter()
+    with pytest.raises(BudgetExceeded):
+        loop.stability(max_evaluations=1e6, timeout=2.0)
+    assert time.perf_counter() - t0 < 3.0
+
+
+def test_multiple_root_is_separated_from_a_close_simple_root():
+    """Inverse DtaZV near the real-root boundary Kp = 0: an exact double root at 0 (the
+    shaper's removable point) and a genuine unstable root at 0.0044.
+
+    The Pellet disk used to be taken at the largest certified radius, which swallowed
+    both (m = 3), and the second suspect certified the same disk again: "counts 3 but
+    6 roots were refined".  The smallest certified disk now separates them.
+    """
+    loop = _crane_loop("inverse_shaper", "dtazv", -0.012484753462867815, -1.6797005582523572)
+    r = roots(loop.characteristic, (-0.164, 1.0, -0.546, 546.4))
+    assert r.count == 3
+    assert list(r.multiplicities) == [1, 2]
+    assert r.distinct[1] == 0 and abs(r.distinct[0] - 0.0044051755) < 1e-9
+    st = loop.stability()
+    assert not st.stable
+    assert np.any(np.abs(st.unstable_roots - 0.0044051755) < 1e-9)   # the real root that crossed at Kp = 0
+    assert not np.any(st.unstable_roots == 0)                        # the removable double root is cancelled

@@ -66,7 +66,7 @@ class TransferFunction:
     (1+0j)
     """
 
-    __slots__ = ("num", "den", "_expansion_points")
+    __slots__ = ("num", "den", "_expansion_points", "_taylor_cache")
 
     num: QuasiPolynomial
     den: QuasiPolynomial
@@ -79,6 +79,7 @@ class TransferFunction:
         self.num = num
         self.den = den
         self._expansion_points: np.ndarray | None = None
+        self._taylor_cache: dict[complex, tuple[np.ndarray, ...]] = {}
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -129,7 +130,12 @@ class TransferFunction:
                 poly = den.coeffs[0][::-1]
                 roots = np.roots(poly)
                 for r in roots:
-                    if abs(r) > 0 and abs(self.num(r)) <= 1e-8 * max(1.0, float(self.num.magnitude_scale(r))):
+                    if abs(r) == 0:
+                        continue
+                    # far left, the delays' exponentials overflow: such a root is no removable point
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        nv, scale = abs(self.num(r)), float(self.num.magnitude_scale(r))
+                    if np.isfinite(nv) and np.isfinite(scale) and nv <= 1e-8 * max(1.0, scale):
                         pts.append(complex(r))
             self._expansion_points = np.array(pts, dtype=complex)
         return self._expansion_points
@@ -160,8 +166,10 @@ class TransferFunction:
         return out if np.ndim(s) else complex(out)
 
     def _taylor_ratio(self, s0: complex, h: np.ndarray) -> np.ndarray:
-        cn, sn = self.num.taylor(s0, _TAYLOR_ORDER)
-        cd, sd = self.den.taylor(s0, _TAYLOR_ORDER)
+        key = complex(s0)
+        if key not in self._taylor_cache:  # the coefficients depend on s0 only
+            self._taylor_cache[key] = self.num.taylor(s0, _TAYLOR_ORDER) + self.den.taylor(s0, _TAYLOR_ORDER)
+        cn, sn, cd, sd = self._taylor_cache[key]
         cn = np.where(np.abs(cn) <= _CANCEL_RTOL * sn, 0.0, cn)
         cd = np.where(np.abs(cd) <= _CANCEL_RTOL * sd, 0.0, cd)
         kn = np.flatnonzero(cn)

@@ -14,6 +14,7 @@ from .loop import (
     Margins,
     NyquistResponse,
     control_action,
+    feature_frequencies,
     feedforward,
     inverse_shaper,
     removable_points,
@@ -22,5 +23,5 @@ from .plots import bode_plot, nyquist_plot, spectrum_plot
 
 __all__ = [
     "Loop", "feedforward", "control_action", "inverse_shaper", "Margins", "NyquistResponse",
-    "ARCHITECTURES", "INPUTS", "removable_points", "bode_plot", "nyquist_plot", "spectrum_plot",
+    "ARCHITECTURES", "INPUTS", "removable_points", "feature_frequencies", "bode_plot", "nyquist_plot", "spectrum_plot",
 ]

@@ -55,6 +55,7 @@ __all__ = [
     "ARCHITECTURES",
     "INPUTS",
     "removable_points",
+    "feature_frequencies",
 ]
 
 ARCHITECTURES = ("feedforward", "control_action", "inverse_shaper")
@@ -103,6 +104,27 @@ def _checked_block(obj: Any, name: str) -> TransferFunction:
     except ValueError as exc:
         msg = str(exc)
         raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from exc
+
+
+def feature_frequencies(tfs: Sequence[TransferFunction]) -> list[float]:
+    """Frequencies [rad/s] where the blocks ``tfs`` change: ``|root|`` of every polynomial row of their
+    numerators and denominators (nonzero roots) and ``2 pi / tau`` of every delay.
+
+    >>> feature_frequencies([TransferFunction.from_poly([1.0], [1.0, 3.0, 2.0])])   # poles -1, -2
+    [1.0, 2.0]
+    """
+    out: list[float] = []
+    for tf in tfs:
+        for q in (tf.num, tf.den):
+            if q.is_zero:
+                continue
+            for row in q.coeffs:
+                nz = np.flatnonzero(row)
+                if nz.size and nz[-1] > nz[0]:
+                    r = P.polyroots(row[nz[0] : nz[-1] + 1])
+                    out += sorted(float(abs(x)) for x in r if abs(x) > 0 and np.isfinite(abs(x)))
+            out += [2.0 * math.pi / t for t in q.delays if t > 0]
+    return out
 
 
 def _vanishing_order(h: QuasiPolynomial, s0: complex, max_order: int = 24) -> int:
@@ -402,18 +424,28 @@ class Loop:
             self._channels[key] = self._channel(src, dst)
         return self._channels[key]
 
-    def _channel(self, src: str, dst: str) -> TransferFunction:
-        if dst == "r":  # feedforward prefilter output: outside the loop
-            if src != "w":
-                return TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0))
-            return self.S if self.S is not None else TransferFunction.constant(1.0)
+    def _path(self, src: str, dst: str) -> tuple[_Block, _Block, set[int], float]:
+        """The loop's blocks on the way from input ``src`` to output ``dst``.
+
+        Returns the input's and the output's own blocks, the set of ring nodes
+        passed, and the sign (-1 when the path crosses the comparator
+        ``e = (...) - (...)``).
+        """
         topo = self._topology
         n_nodes = len(topo.nodes)
         a, pre = topo.inputs[src]
         b, post = topo.outputs[dst]
         length = (b - a) % n_nodes
         path = {(a + k) % n_nodes for k in range(1, length + 1)}
-        sign = -1.0 if 0 in path else 1.0  # crossing the comparator e = (...) - (...)
+        return pre, post, path, -1.0 if 0 in path else 1.0
+
+    def _channel(self, src: str, dst: str) -> TransferFunction:
+        if dst == "r":  # feedforward prefilter output: outside the loop
+            if src != "w":
+                return TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0))
+            return self.S if self.S is not None else TransferFunction.constant(1.0)
+        topo = self._topology
+        pre, post, path, sign = self._path(src, dst)
         factors = [blk.num if i in path else blk.den for i, blk in enumerate(topo.blocks)]
         num = _product(factors + [pre.num, post.num])
         den = _product([self.characteristic, pre.den, post.den])
@@ -426,6 +458,53 @@ class Loop:
         24
         """
         return {(s, d): self.transfer(s, d) for s in self.inputs for d in self.outputs}
+
+    @property
+    def plant_gain(self) -> TransferFunction:
+        """``P``: the loop gain without the controller, ``L = C P`` (seed 001 eq. 5).
+
+        ``G`` (feedforward), ``S G`` (control action, ``P_1``), ``G / S`` (inverse
+        shaper, ``P_2``), as one exact transfer function.
+
+        >>> loop = inverse_shaper(G=(1, [1, 0]), C=3.0, S=0.5)
+        >>> complex(loop.plant_gain(1j))          # (1 / j) / 0.5
+        -2j
+        """
+        blocks = [b for b in self._topology.blocks if b.name != "C"]
+        return TransferFunction(_product([b.num for b in blocks]), _product([b.den for b in blocks]))
+
+    def controller_factor(self, src: str, dst: str) -> tuple[TransferFunction, bool]:
+        """Split channel ``src -> dst`` as ``R C / (1 + L)`` or ``R / (1 + L)``.
+
+        Returns ``(R, through_controller)``: ``R`` is exact and independent of
+        ``C``, and ``through_controller`` says whether the path passes the
+        controller.  Every channel has this form because ``C`` enters the loop
+        once; the tuning module (:mod:`posicast.tune`) uses it to write each
+        H-infinity constraint as a quadratic in the controller gains.
+
+        Examples
+        --------
+        >>> loop = control_action(G=(1, [1, 1, 0]), C=2.0, S=0.5)
+        >>> R, through = loop.controller_factor("n", "u")    # -C S / (1 + C S G)
+        >>> through, complex(R(1j)).real
+        (True, -0.5)
+        >>> loop.controller_factor("d", "z")[1]                # 1 / (1 + L)
+        False
+        """
+        src, dst = self._check_pair(src, dst)
+        if dst == "r":
+            raise ValueError("channel w -> r (the feedforward prefilter) is outside the loop: it has no controller factor")
+        topo = self._topology
+        pre, post, path, sign = self._path(src, dst)
+        through = False
+        nums, dens = [pre.num, post.num], [pre.den, post.den]
+        for i, blk in enumerate(topo.blocks):
+            if blk.name == "C":
+                through = i in path
+                continue
+            nums.append(blk.num if i in path else blk.den)
+            dens.append(blk.den)
+        return TransferFunction(_product(nums).scaled(sign), _product(dens)), through
 
     @property
     def loop_gain(self) -> TransferFunction:
@@ -489,16 +568,18 @@ class Loop:
 
         return spectral_abscissa(self.characteristic, ignore=self.cancelled)
 
-    def stability(self) -> Any:
+    def stability(self, *, max_evaluations: float = 5e7, timeout: float = 120.0) -> Any:
         """Full stability report of the closed loop (:func:`posicast.spectra.stability`).
 
         ``.stable``, ``.abscissa``, ``.kind`` ('retarded', 'neutral', 'polynomial'),
         ``.difference_abscissa`` (neutral loops), ``.strongly_stable``,
-        ``.unstable_roots``, ``.reason``.
+        ``.unstable_roots``, ``.reason``.  ``max_evaluations`` and ``timeout``
+        bound each root search (:class:`~posicast.spectra.BudgetExceeded` past them).
         """
         from ..spectra import stability
 
-        return stability(self.characteristic, ignore=self.cancelled)
+        return stability(self.characteristic, ignore=self.cancelled, max_evaluations=max_evaluations,
+                         timeout=timeout)
 
     def is_stable(self) -> bool:
         """True if every closed-loop pole has a negative real part (see :meth:`stability`)."""
@@ -523,18 +604,8 @@ class Loop:
         linear grid fine enough (40 points per ``2 pi / tau_max``) to resolve the
         ripple that the delays put on ``L(j omega)``.
         """
-        feats: list[float] = []
         blocks = [self.G, self.C] + ([self.S] if self.S is not None and self.architecture != "feedforward" else [])
-        for tf in blocks:
-            for q in (tf.num, tf.den):
-                if q.is_zero:
-                    continue
-                for row in q.coeffs:
-                    nz = np.flatnonzero(row)
-                    if nz.size and nz[-1] > nz[0]:
-                        r = P.polyroots(row[nz[0] : nz[-1] + 1])
-                        feats += [abs(x) for x in r if abs(x) > 0 and np.isfinite(abs(x))]
-                feats += [2 * math.pi / t for t in q.delays if t > 0]
+        feats = feature_frequencies(blocks)
         if not feats:
             feats = [1.0]
         lo = 10.0 ** (math.floor(math.log10(min(feats))) - 1)

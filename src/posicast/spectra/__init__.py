@@ -9,6 +9,7 @@ from .stability import (
     root_bound,
     spectral_abscissa,
     stability,
+    unstable_count,
 )
 
 __all__ = [
@@ -23,4 +24,5 @@ __all__ = [
     "rightmost",
     "stability",
     "Stability",
+    "unstable_count",
 ]

@@ -357,6 +357,8 @@ def _newton(
 class _Found:
     point: complex
     mult: int
+    radius: float = 0.0  # a Pellet disk |s - centre| < radius certified to hold exactly ``mult`` roots
+    centre: complex = 0j
 
 
 def _rel_residual(q: QuasiPolynomial, z: np.ndarray) -> np.ndarray:
@@ -377,14 +379,21 @@ def _inside(z: np.ndarray, rect: tuple[float, float, float, float]) -> np.ndarra
     return (z.real >= a) & (z.real <= b) & (z.imag >= c) & (z.imag <= d)
 
 
-def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> tuple[int, float] | None:
+def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> tuple[int, float, float] | None:
     """Certified number of roots in a small disk about ``c`` (Rouché/Pellet test).
 
     With the Taylor coefficients ``a_k`` of ``h`` about ``c``, if for some
     radius ``rho`` one term dominates, ``|a_m| rho^m > sum_{k != m} |a_k| rho^k``
     plus rounding errors and a Cauchy bound of the tail beyond ``order``, then
-    ``h`` has exactly ``m`` roots in ``|s - c| < rho``.  Returns ``(m, rho)`` or
-    None when no radius up to ``rho_max`` separates a dominant term.
+    ``h`` has exactly ``m`` roots in ``|s - c| < rho``.
+
+    Radii are tried from small to large.  Returns ``(m, rho, rho_iso)``: the
+    smallest certified disk holding ``m >= 1`` roots (so that an exact multiple
+    root is not merged with a close simple neighbour), and the largest radius
+    ``rho_iso`` that still certifies the same ``m`` (an isolation disk: any other
+    point found inside it is one of these ``m`` roots).  ``(0, rho, rho)`` when
+    only empty disks are certified, None when no radius up to ``rho_max`` separates
+    a dominant term.
     """
     a, scale = q.taylor(c, order)
     err = 8.0 * _EPS * (order + q.coeffs.size) * scale
@@ -393,7 +402,8 @@ def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> 
     # |h| <= B on |s - c| = R0, hence |a_k| <= B / R0^k (Cauchy) for the tail k > order
     B = float(np.sum(P.polyval(abs(c) + R0, np.abs(q.coeffs).T) * np.exp(-(c.real - R0) * q.delays)))
     k = np.arange(order + 1)
-    for j in range(40):
+    certified: list[tuple[float, int]] = []
+    for j in range(39, -1, -1):
         rho = rho_max * 10.0 ** (-j / 4.0)
         x = rho / R0
         tail = B * x ** (order + 1) / (1.0 - x)
@@ -402,9 +412,19 @@ def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> 
         lhs = (absa[m] - err[m]) * rho**m
         rhs = float(np.sum(terms) - terms[m]) + tail
         if lhs > rhs:
-            return m, rho
-    return None
-
+            certified.append((rho, m))
+    if not certified:
+        return None
+    first = next((i for i, (_, m) in enumerate(certified) if m >= 1), None)
+    if first is None:
+        return 0, certified[-1][0], certified[-1][0]
+    m, rho = certified[first][1], certified[first][0]
+    rho_iso = rho
+    for r2, m2 in certified[first + 1 :]:
+        if m2 != m:
+            break
+        rho_iso = r2
+    return m, rho, rho_iso
 
 
 class _Solver:
@@ -420,15 +440,35 @@ class _Solver:
         if pts.size == 0:
             return
         q = self.ev.q
+        # An exact root at s = 0 of an h whose every term vanishes there (a loop with an
+        # integrator and a distributed shaper) is reached as z ~ 1e-32, where |h| and the
+        # term scale are both rounding: snap it onto 0, where the residual is exact.
+        if q(0.0) == 0:
+            pts = np.where(np.abs(pts) <= 1e-13, 0.0 + 0.0j, pts)
         pts = pts[_rel_residual(q, pts) <= 1e-6]
         # cluster: points closer than tol are one root (or one cluster of roots)
         order = np.argsort(pts.real + 1e-3 * pts.imag)
         pts = pts[order]
+        if pts.size == 0:
+            return
+        # vectorised against the roots already found (a search can hold thousands)
+        known = np.array([f.point for f in self.found], dtype=complex)
+        centres = np.array([f.centre for f in self.found], dtype=complex)
+        radii = np.array([f.radius for f in self.found])
+        tol_known = 1e-7 * np.maximum(1.0, np.abs(known))
+        new = np.empty(pts.size, dtype=complex)
+        n_new = 0
         for p in pts:
             tol = 1e-7 * max(1.0, abs(p))
-            if any(abs(p - f.point) <= max(tol, 1e-7 * max(1.0, abs(f.point))) for f in self.found):
+            # a point inside a cluster's certified disk is one of the roots already counted there
+            # (Newton stalls about sqrt(eps) away from a double root, farther than tol)
+            if known.size and np.any((np.abs(p - known) <= np.maximum(tol, tol_known)) | (np.abs(p - centres) < radii)):
                 continue
-            self.found.append(_Found(complex(p), 0))
+            if n_new and np.any(np.abs(p - new[:n_new]) <= np.maximum(tol, 1e-7 * np.maximum(1.0, np.abs(new[:n_new])))):
+                continue
+            new[n_new] = p
+            n_new += 1
+        self.found.extend(_Found(complex(p), 0) for p in new[:n_new])
 
     def classify(self) -> None:
         """Give every new root its multiplicity.
@@ -463,20 +503,25 @@ class _Solver:
             got = _pellet(ev.q, centre, rho_max)
             if got is None:
                 raise RootFindingError(f"could not isolate the root cluster near {centre:.6g}")
-            m, r = got
+            m, r, r_iso = got
             for g in group:
                 g.mult = -1  # replaced by one representative below
             if m <= 0:
                 continue
-            polish.setdefault(m, []).append((centre, r))
+            # other suspects in the isolation disk are among these m roots: one cluster, counted once
+            inside = [g for g in suspects if abs(g.point - centre) < r_iso]
+            for g in inside:
+                g.mult = -1
+            suspects = [g for g in suspects if g not in inside]
+            polish.setdefault(m, []).append((centre, r, r_iso))
         # polish every cluster of multiplicity m at once, on h^{(m-1)} where an m-fold root is simple
         for m, items in polish.items():
-            centres = np.array([c for c, _ in items])
-            radii = np.array([r for _, r in items])
+            centres = np.array([c for c, _, _ in items])
+            radii = np.array([r for _, r, _ in items])
             z2, ok = _newton(ev, centres, radii, q=ev.q.derivative(m - 1) if m > 1 else None)
             good = ok & (np.abs(z2 - centres) < radii)
-            for c, zz, g in zip(centres, z2, good):
-                self.found.append(_Found(complex(zz) if g else complex(c), m))
+            for c, zz, g, (_, _, r_iso) in zip(centres, z2, good, items):
+                self.found.append(_Found(complex(zz) if g else complex(c), m, float(r_iso), complex(c)))
         self.found = [f for f in self.found if f.mult > 0]
 
     def n_in(self, rect: tuple[float, float, float, float]) -> int:

@@ -16,6 +16,7 @@ because the shaper's numerator *is* the loop's difference operator.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -34,6 +35,7 @@ __all__ = [
     "rightmost",
     "Stability",
     "stability",
+    "unstable_count",
 ]
 
 
@@ -215,7 +217,7 @@ def _conjugate_closure(r: Roots) -> np.ndarray:
     return full[np.lexsort((-full.imag, -full.real))]
 
 
-def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any) -> np.ndarray | None:
+def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any, budget: dict | None = None) -> np.ndarray | None:
     """All roots with Re s >= alpha (conjugates included), or None if unbounded there.
 
     The half-plane is cut into vertical strips ``[b_i, b_{i+1}]``, each closed
@@ -233,7 +235,7 @@ def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any) -> np.ndarra
             break  # |s| <= R(lo) < lo <= Re s is impossible: nothing further right
         hi = min(lo + width, Rlo + 1.0)
         pad = 1e-3 * max(1.0, Rlo)
-        r = roots(q, (lo, hi, -pad, Rlo + pad), ignore=ignore)
+        r = roots(q, (lo, hi, -pad, Rlo + pad), ignore=ignore, **(budget or {}))
         full = _conjugate_closure(r)
         found.append(full[(full.real >= lo) & (full.real < hi)])
         if hi >= Rlo:
@@ -363,8 +365,12 @@ class Stability:
         return self.stable
 
 
-def stability(h: Any, *, ignore: Any = None) -> Stability:
+def stability(h: Any, *, ignore: Any = None, max_evaluations: float = 5e7, timeout: float = 120.0) -> Stability:
     """Decide exponential stability of ``h(s) = 0`` with a certified search of ``Re s >= 0``.
+
+    ``ignore`` lists known spurious roots (see :func:`posicast.roots`);
+    ``max_evaluations`` and ``timeout`` bound each root search of the staircase
+    (:class:`~posicast.spectra.rootfinder.BudgetExceeded` past them).
 
     Examples
     --------
@@ -375,12 +381,13 @@ def stability(h: Any, *, ignore: Any = None) -> Stability:
     '1 root with Re s >= 0, the rightmost at 1'
     """
     q = _prepared(h)
+    budget = {"max_evaluations": max_evaluations, "timeout": timeout}
     kind = q.kind
     ds = None
     if kind == "neutral":
         ds = difference_spectrum(q)
         if not ds.strongly_stable:
-            unst = _search_right_of(q, max(0.0, ds.hale_abscissa) + 1e-3, ignore)
+            unst = _search_right_of(q, max(0.0, ds.hale_abscissa) + 1e-3, ignore, budget)
             return Stability(
                 False,
                 kind,
@@ -390,7 +397,7 @@ def stability(h: Any, *, ignore: Any = None) -> Stability:
                 f"(sum of |coefficients| = {float(np.sum(np.abs(ds.operator.coeffs[1:, 0]))):.4g} >= 1, "
                 f"C_D = {ds.abscissa:.4g})",
             )
-    unst = _search_right_of(q, 0.0, ignore)
+    unst = _search_right_of(q, 0.0, ignore, budget)
     if unst is None:  # cannot happen: gamma(0) > 0 for retarded or strongly stable neutral h
         raise RuntimeError("no root bound at Re s = 0; please report this quasi-polynomial")
     if unst.size:
@@ -400,6 +407,117 @@ def stability(h: Any, *, ignore: Any = None) -> Stability:
         )
     extra = f"; neutral chains approach Re s = C_D = {ds.abscissa:.4g}" if ds is not None else ""
     return Stability(True, kind, unst, ds, f"no root with Re s >= 0 (certified count){extra}")
+
+
+def _axis_path(R: float, axis_points: np.ndarray, eps: np.ndarray) -> list[complex]:
+    """Counter-clockwise polygon around ``[0, R] x [-R, R]`` with square detours into ``Re s > 0``.
+
+    Each detour excludes the square ``[0, eps] x [Im p - eps, Im p + eps]`` of an
+    imaginary-axis point ``p`` (a known spurious root) from the enclosed region.
+    """
+    path = [complex(0.0, -R), complex(R, -R), complex(R, R), complex(0.0, R)]
+    for p, e in sorted(zip(axis_points.imag, eps), key=lambda t: -t[0]):  # down the imaginary axis
+        path += [complex(0.0, p + e), complex(e, p + e), complex(e, p - e), complex(0.0, p - e)]
+    return path
+
+
+def unstable_count(h: Any, *, ignore: Any = None, max_evaluations: float = 2e6) -> int:
+    """Certified number of roots with ``Re s >= 0`` by the argument principle alone (no root is located).
+
+    All such roots lie in ``[0, R] x [-R, R]`` with ``R`` from :func:`root_bound`;
+    the winding number of ``h`` along that rectangle's boundary is certified
+    segment by segment as in :func:`posicast.roots` (rigorous derivative bound
+    plus a rounding margin).  Known spurious roots on the imaginary axis
+    (``ignore``, e.g. a distributed shaper's removable ``s = 0``) are passed by
+    small square detours into ``Re s > 0``, and each detour's square
+    ``[-e, e] x [Im p - e, Im p + e]`` is counted separately and must hold exactly
+    the ignored multiplicity; ignored points inside the rectangle are subtracted.
+
+    Its cost grows with the rectangle's perimeter, not its area, so this is the
+    cheap way to tell an unstable loop with large gains (thousands of roots
+    within ``R``) from a stable one; :func:`stability` also lists the roots.
+
+    Parameters
+    ----------
+    h : QuasiPolynomial
+        Retarded, or neutral with a strongly stable difference operator.
+    ignore : array_like of complex, optional
+        Known spurious roots, one entry per multiplicity (see :func:`posicast.roots`).
+    max_evaluations : float
+        Budget of evaluations of ``h`` (:class:`BudgetExceeded` past it).
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Advanced ``h``, or neutral ``h`` whose difference operator is not strongly
+        stable (root chains may approach the imaginary axis: use :func:`stability`).
+    RootFindingError
+        A root on (or within rounding of) the imaginary axis: the count is not
+        defined there (a marginal loop); or an ignored point that is not
+        separated from other roots.
+
+    Examples
+    --------
+    >>> from posicast import QuasiPolynomial
+    >>> unstable_count(QuasiPolynomial([[-1.0, 1.0], [0.5, 0.0]], [0, 1]))   # s - 1 + 0.5 e^{-s}
+    1
+    >>> unstable_count(QuasiPolynomial([[1.0, 1.0], [0.5, 0.0]], [0, 1]))    # s + 1 + 0.5 e^{-s}
+    0
+    >>> unstable_count(QuasiPolynomial([[0.0, 2.0, 1.0]]), ignore=[0.0])   # s (s + 2), s = 0 ignored
+    0
+    """
+    from .rootfinder import RootFindingError, _Evaluator, _OnBoundary, _winding
+
+    q = _prepared(h)
+    if not (isinstance(max_evaluations, (int, float)) and max_evaluations > 0):
+        raise ValueError(f"max_evaluations must be > 0, got {max_evaluations!r}")
+    R0 = root_bound(q, 0.0)
+    if not math.isfinite(R0):
+        raise ValueError("neutral h whose difference operator is not strongly stable: no root bound in Re s >= 0; "
+                         "use stability()")
+    ign = np.zeros(0, complex) if ignore is None else np.atleast_1d(np.asarray(ignore, dtype=complex)).ravel()
+    if not np.all(np.isfinite(ign)):
+        raise ValueError("ignore must contain finite points (no NaN or inf)")
+    R = max(R0, 1.0) * (1.0 + 1e-3) + 1e-3
+    pts, mult = np.unique(ign, return_counts=True)
+    ev = _Evaluator(q, int(max_evaluations), time.monotonic() + 1e9)  # an evaluation budget only: reproducible
+    tau_max = float(q.delays[-1])
+    step = min(R / 16.0, math.pi / (3.0 * tau_max)) if tau_max > 0 else R / 16.0
+    # Ignored points on the imaginary axis get detours of half-width e; those well inside are subtracted.
+    # Next to a multiple ignored root |h| is tiny against its terms (they cancel), so a detour that cannot
+    # be certified is widened (e x 10, twice) before giving up.
+    last: Exception | None = None
+    for rel in (1e-4, 1e-3, 1e-2):
+        eps_all = rel * np.maximum(1.0, np.abs(pts))
+        on_axis = (np.abs(pts.real) <= eps_all) & (np.abs(pts.imag) < R - 2 * eps_all)
+        inside = (pts.real > eps_all) & (np.abs(pts) <= R)
+        im = np.sort(pts[on_axis].imag)
+        if im.size > 1 and np.min(np.diff(im)) < 4 * eps_all[on_axis].max():
+            break
+        try:
+            n = _winding(ev, _axis_path(R, pts[on_axis], eps_all[on_axis]), step, min_len=1e-9 * R)
+            for p, e, m in zip(pts[on_axis], eps_all[on_axis], mult[on_axis]):
+                square = [complex(-e, p.imag - e), complex(e, p.imag - e), complex(e, p.imag + e),
+                          complex(-e, p.imag + e)]
+                got = _winding(ev, square, e / 4.0, min_len=1e-7 * e)
+                if got != m:
+                    raise RootFindingError(
+                        f"{got} roots within {e:.3g} of the ignored point {_fmt(complex(p))}, which stands for "
+                        f"{m}: another root sits next to it"
+                    )
+            return int(n - int(np.sum(mult[inside])))
+        except _OnBoundary as hit:
+            on_detour = any(abs(hit.point - p) <= 2 * e for p, e in zip(pts[on_axis], eps_all[on_axis]))
+            last = RootFindingError(f"a root on or within rounding of the imaginary axis near {_fmt(hit.point)}: "
+                                    "the loop is marginal there")
+            if not on_detour:
+                raise last from None
+    raise last if last is not None else RootFindingError("ignored points on the imaginary axis are too close "
+                                                          "to each other to pass")
 
 
 def _fmt(z: complex) -> str:
