@@ -62,3 +62,34 @@ def test_installed_command_exits_2_without_traceback():
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert "Traceback" not in r.stderr and r.stderr.count("\n") == 1
+
+
+def test_tune_text_and_json(capsys, tmp_path):
+    assert main(["tune", "--num", "1", "--den", "1 2 1", "--controller", "pi", "--ms", "1.4", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["stable"] and abs(data["ms"] - 1.4) < 1e-6
+    assert abs(data["gains"]["ki"] - 1.0582) < 1e-3 and data["gains"]["kd"] is None
+    plot = tmp_path / "region.png"
+    assert main(["tune", "--case", "gantry_crane", "--shaper", "dezv", "--structure", "inverse_shaper",
+                 "--plot", str(plot)]) == 0
+    out = capsys.readouterr().out
+    assert "kp = 32.89" in out and "stable" in out and plot.stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    "argv, word",
+    [
+        (["tune", "--num", "1 0 0", "--den", "1 1"], "proper"),
+        (["tune", "--num", "1", "--den", "1 1 0", "--shaper", "zv"], "--omega and --zeta"),
+        (["tune", "--case", "gantry_crane", "--ms", "-1"], "ms must be > 0"),
+        (["tune", "--case", "nowhere"], "--case must be one of"),
+        (["tune", "--num", "1"], "--den is required"),
+        (["tune", "--num", "1 x", "--den", "1 1"], "--num must be numbers"),
+        (["tune", "--case", "gantry_crane", "--kd-range", "3", "1"], "kd_range must have low < high"),
+        (["tune", "--num", "1", "--den", "1 1", "--controller", "pi", "--derivative-filter", "0.1"], "do not apply"),
+    ],
+)
+def test_tune_errors_are_one_line(argv, word, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert word in err and err.count("\n") == 1

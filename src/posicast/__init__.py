@@ -26,10 +26,17 @@ from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shape
 from . import cases
 from .simulate import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_abscissa, stability
+from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "tune_pd",
+    "tune_pi",
+    "tune_pid",
+    "TuningResult",
+    "Region",
+    "Constraint",
     "identify",
     "calibrate",
     "Identification",

@@ -1,4 +1,4 @@
-"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``.
+"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``.
 
 Every error (bad argument, out-of-range value) prints one line to stderr and
 exits with status 2; no traceback.
@@ -77,7 +77,109 @@ def _build_parser() -> _Parser:
     c.add_argument("--vtol", type=float, default=0.05, help="tolerable worst-case vibration (default 0.05)")
     c.add_argument("--margin", type=float, default=0.05, help="extra frequency uncertainty (default 0.05)")
     c.add_argument("--plot", help="write the calibration plot (png, pdf, svg)")
+
+    t = sub.add_parser("tune", help="robust PD/PI for a loop with a shaper (H-infinity regions, seed 001)")
+    src = t.add_mutually_exclusive_group(required=True)
+    src.add_argument("--case", help="a seed plant from posicast.cases (e.g. gantry_crane)")
+    src.add_argument("--num", help="plant numerator, descending powers, e.g. '1'")
+    t.add_argument("--den", help="plant denominator, descending powers, e.g. '1 1 0' (with --num)")
+    t.add_argument("--delay", type=float, default=0.0, help="plant dead time [s] (default 0)")
+    t.add_argument("--shaper", help="shaper kind (see 'posicast kinds'); default: none")
+    t.add_argument("--omega", type=float, help="shaper mode frequency [rad/s] (default: the case's mode)")
+    t.add_argument("--zeta", type=float, help="shaper mode damping (default: the case's mode)")
+    t.add_argument("--structure", default="control_action",
+                   choices=("control_action", "inverse_shaper", "feedforward"), help="where the shaper sits")
+    t.add_argument("--controller", default="pd", choices=("pd", "pi"), help="controller structure (default pd)")
+    t.add_argument("--ms", type=float, default=2.0, help="peak sensitivity bound (default 2)")
+    t.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1) (pd only)")
+    for g in ("kp", "ki", "kd"):
+        t.add_argument(f"--{g}-range", type=float, nargs=2, metavar=("LOW", "HIGH"), help=f"bounds of {g}")
+    t.add_argument("--json", action="store_true", help="machine-readable output")
+    t.add_argument("--plot", help="write the region in the gain plane (png, pdf, svg)")
+    t.add_argument("--nyquist", help="write the Nyquist plot with the Ms circle")
     return parser
+
+
+def _coeffs(text: str, name: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise ValueError(f"{name} must be numbers separated by spaces, got {text!r}") from None
+    if not vals:
+        raise ValueError(f"{name} must not be empty")
+    return vals
+
+
+def _tune_cmd(args: argparse.Namespace) -> int:
+    from .core.transfer import TransferFunction, delay
+    from .modes import Mode
+    from .shapers.design import design
+    from .tune import tune_pd, tune_pi
+
+    F = None
+    mode = None
+    if args.case is not None:
+        from .cases import ALL
+
+        if args.case not in ALL:
+            raise ValueError(f"--case must be one of {', '.join(ALL)}; got {args.case!r}")
+        case = ALL[args.case]
+        G, F, mode = case.G, case.F, case.mode
+        if args.den is not None:
+            raise ValueError("--den goes with --num, not with --case")
+    else:
+        if args.den is None:
+            raise ValueError("--den is required with --num")
+        G = TransferFunction.from_poly(_coeffs(args.num, "--num"), _coeffs(args.den, "--den"))
+    if args.delay:
+        if not args.delay > 0:
+            raise ValueError(f"--delay must be >= 0, got {args.delay:g}")
+        G = G * delay(args.delay)
+    if args.omega is not None or args.zeta is not None:
+        if args.omega is None or args.zeta is None:
+            raise ValueError("--omega and --zeta go together")
+        mode = Mode(args.omega, args.zeta)
+    S = None
+    if args.shaper is not None:
+        if mode is None:
+            raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
+        S = design(args.shaper.lower(), mode)
+    common = {"F": F}
+    if args.controller == "pd":
+        if args.ki_range is not None:
+            raise ValueError("--ki-range does not apply to a pd controller")
+        r = tune_pd(G, S, args.structure, ms=args.ms, derivative_filter=args.derivative_filter,
+                    kp_range=args.kp_range, kd_range=args.kd_range, **common)
+    else:
+        if args.kd_range is not None or args.derivative_filter is not None:
+            raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
+        r = tune_pi(G, S, args.structure, ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, **common)
+    figures = []
+    if (args.plot or args.nyquist) and not r.empty:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        if args.plot:
+            figures.append((r.plot()[0], args.plot))
+        if args.nyquist and r.loop is not None:
+            figures.append((r.nyquist_plot()[0], args.nyquist))
+    for fig, out in figures:  # everything computed: only now write
+        _save_atomic(fig, out)
+    if args.json:
+        ext = r.region.extent()
+        print(json.dumps({
+            "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
+            "empty": r.empty, "unbounded": r.unbounded,
+            "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
+            "ms": None if r.empty else r.ms, "omega_ms": None if r.empty else r.omega_ms,
+            "stable": r.stable, "reason": r.reason,
+            "region": None if ext is None else {r.family.x: [ext[0], ext[1]], r.family.y: [ext[2], ext[3]]},
+        }, indent=2, default=lambda v: None if isinstance(v, float) and not math.isfinite(v) else v))
+    else:
+        print(r.summary())
+        for _, out in figures:
+            print(f"wrote {out}")
+    return 0
 
 
 def _n_modes(text: str) -> Any:
@@ -203,6 +305,8 @@ def _run(argv: Sequence[str] | None) -> int:
 
     if args.command in ("identify", "calibrate"):
         return _identify_cmd(args)
+    if args.command == "tune":
+        return _tune_cmd(args)
     if args.command == "kinds":
         for name, spec in KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())

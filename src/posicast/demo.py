@@ -326,6 +326,9 @@ def build_report(out: str | Path) -> Path:
     _ei_section(report)
     _spectra_section(report)
     _simulation_section(report)
+    from .tune.report import seed001_section
+
+    seed001_section(report)
     from .identify.report import identification_section
 
     identification_section(report)

@@ -1,0 +1,400 @@
+"""Frequency data of a tuning problem: ``1 + L`` and every constraint, affine in the two gains.
+
+With the controller ``C = c0 + kx cx + ky cy`` (a :class:`ControllerFamily`) and
+the loop ``L = C P``, at every frequency
+
+* ``1 + L = u + kx a + ky b`` with ``u = 1 + c0 P``, ``a = cx P``, ``b = cy P``;
+* a constraint channel ``X = (alpha + beta C) / (1 + L)``
+  (:meth:`~posicast.loops.Loop.controller_factor`) has numerator
+  ``nu + kx na + ky nb``, and ``|W X| < gamma`` reads
+  ``|u + kx a + ky b|^2 - w2 |nu + kx na + ky nb|^2 > 0`` with ``w2 = |W|^2 / gamma^2``.
+
+:class:`FrequencyData` holds these on a grid built for the problem: a log grid
+over the features of every block, refined until the exact derivative of each
+quantity times the local spacing is small against its size (this resolves
+every resonance, including those of a shaper's quasi-polynomial zeros in
+``1 / S``), plus *limit columns*: the ``omega -> infinity`` behaviour, which for
+a neutral loop is an almost-periodic function of ``omega`` (ratio of the leading
+exponential sums), sampled over one period of the commensurate delays.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+from numpy.polynomial import polynomial as P
+
+from ..core.quasipoly import QuasiPolynomial
+from ..core.transfer import TransferFunction
+from ..loops import Loop, feature_frequencies
+from .constraints import Constraint
+from .family import ControllerFamily
+
+__all__ = ["FrequencyData", "Asymptote"]
+
+_MAX_POINTS = 400_000  # frequency grid size cap
+_REFINE_ROUNDS = 24
+_LIMIT_SAMPLES = 1024
+
+
+# ---------------------------------------------------------------------- asymptotes
+@dataclass(frozen=True)
+class Asymptote:
+    """``H(j omega) ~ (j omega)^m h(omega)`` as ``omega -> infinity``.
+
+    ``h`` is the ratio of the leading exponential sums: ``num_coef . exp(-j omega num_delay)``
+    over ``den_coef . exp(-j omega den_delay)``.
+    """
+
+    m: int
+    num_coef: np.ndarray
+    num_delay: np.ndarray
+    den_coef: np.ndarray
+    den_delay: np.ndarray
+
+    @classmethod
+    def of(cls, tf: TransferFunction) -> Asymptote:
+        if tf.num.is_zero:
+            return cls(-(10**6), np.zeros(1), np.zeros(1), np.ones(1), np.zeros(1))
+        n, d = tf.num, tf.den
+        nl, dl = n.coeffs[:, n.degree], d.coeffs[:, d.degree]
+        kn, kd = nl != 0, dl != 0
+        return cls(n.degree - d.degree, nl[kn], n.delays[kn], dl[kd], d.delays[kd])
+
+    def __mul__(self, other: Asymptote) -> Asymptote:
+        return Asymptote(
+            self.m + other.m,
+            np.multiply.outer(self.num_coef, other.num_coef).ravel(),
+            np.add.outer(self.num_delay, other.num_delay).ravel(),
+            np.multiply.outer(self.den_coef, other.den_coef).ravel(),
+            np.add.outer(self.den_delay, other.den_delay).ravel(),
+        )
+
+    @property
+    def delays(self) -> np.ndarray:
+        return np.concatenate([self.num_delay, self.den_delay])
+
+    def values(self, theta: np.ndarray) -> np.ndarray:
+        """The limit at phase parameters ``theta`` (0 for ``m < 0``; requires ``m <= 0``)."""
+        if self.m < 0:
+            return np.zeros(theta.shape, dtype=complex)
+        if self.m > 0:
+            raise ValueError("improper term: no finite limit")
+        num = np.exp(-1j * np.multiply.outer(theta, self.num_delay)) @ self.num_coef
+        den = np.exp(-1j * np.multiply.outer(theta, self.den_delay)) @ self.den_coef
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return num / den
+
+
+def _poly_tf(num_desc: np.ndarray, den_desc: np.ndarray) -> TransferFunction:
+    n = np.trim_zeros(np.asarray(num_desc, dtype=float), "f")
+    return TransferFunction.from_poly(n if n.size else [0.0], np.trim_zeros(np.asarray(den_desc, dtype=float), "f"))
+
+
+def _common_step(delays: np.ndarray) -> float | None:
+    from ..spectra.stability import _common_step as cs
+
+    return cs(np.unique(delays))
+
+
+class _Term:
+    """A transfer function evaluated with its exact derivative along the imaginary axis."""
+
+    def __init__(self, tf: TransferFunction) -> None:
+        self.tf = tf
+        self.zero = tf.num.is_zero
+        self.dnum = tf.num.derivative()
+        self.dden = tf.den.derivative()
+
+    def __call__(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        if self.zero:
+            z = np.zeros(s.shape, dtype=complex)
+            return z, z
+        val = np.asarray(self.tf(s), dtype=complex).reshape(s.shape)
+        N = np.asarray(self.tf.num(s)).reshape(s.shape)
+        D = np.asarray(self.tf.den(s)).reshape(s.shape)
+        dN = np.asarray(self.dnum(s)).reshape(s.shape)
+        dD = np.asarray(self.dden(s)).reshape(s.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            der = (dN - val * dD) / D
+        der = np.where(np.isfinite(der), der, 0.0)
+        # dH/d omega = j H'(j omega): only the magnitude is used
+        return val, der
+
+
+# ---------------------------------------------------------------------- the data
+class FrequencyData:
+    """``u, a, b`` and every constraint's ``nu, na, nb, w2`` on a refined grid plus limit columns.
+
+    Parameters
+    ----------
+    loop0 : Loop
+        The loop with any controller (only its structure, plant and shaper are used).
+    family : ControllerFamily
+    constraints : sequence of Constraint
+    scale : (float, float)
+        Magnitudes of the gains ``(|kx|, |ky|)`` over which the grid must be
+        accurate (it is refined where ``L`` changes by more than a small fraction
+        of ``max(|1 + L|, r)`` between two points for gains of this size).
+    delta : float
+        That fraction.
+    limit_for_delays : bool
+        Stop the grid at :attr:`delay_ceiling` (see :meth:`refine`).
+
+    Attributes
+    ----------
+    omega : ndarray
+        The finite grid [rad/s] (increasing, > 0, possibly with 0 first).
+    n_grid : int
+        Number of finite columns; the remaining columns are limits.
+    u, a, b : ndarray of complex
+    cons : list of dict with ``nu, na, nb, w2`` arrays
+    """
+
+    def __init__(self, loop0: Loop, family: ControllerFamily, constraints: Sequence[Constraint],
+                 scale: tuple[float, float], delta: float = 0.03, limit_for_delays: bool = False) -> None:
+        self.family = family
+        self.constraints = tuple(constraints)
+        Pg = loop0.plant_gain
+        self.plant = Pg
+        Cs = {k: _poly_tf(getattr(family, "n" + k), family.dC) for k in ("0", "x", "y")}
+        one = TransferFunction.constant(1.0)
+        tfs = {"u": one + Cs["0"] * Pg, "a": Cs["x"] * Pg, "b": Cs["y"] * Pg}
+        asym = {k: Asymptote.of(t) for k, t in tfs.items()}
+        for k in ("a", "b"):
+            if asym[k].m > 0:
+                raise ValueError(
+                    f"the loop gain C P is improper for this controller ({family.describe()}): P = "
+                    f"{'G' if loop0.architecture == 'feedforward' else 'G S' if loop0.architecture == 'control_action' else 'G / S'}"
+                    " needs more poles than zeros (a PD needs relative degree >= 1, a PID with ideal "
+                    "derivative too; or set derivative_filter)"
+                )
+        cons_tfs: list[dict[str, TransferFunction]] = []
+        for c in self.constraints:
+            src, dst = c.channel
+            try:
+                R, through = loop0.controller_factor(src, dst)
+            except ValueError as exc:
+                raise ValueError(f"constraint {c.label}: {exc}") from exc
+            zero = TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0))
+            if through:
+                d = {"nu": Cs["0"] * R, "na": Cs["x"] * R, "nb": Cs["y"] * R}
+            else:
+                d = {"nu": R, "na": zero, "nb": zero}
+            d["W"] = c.weight_tf
+            for k in ("nu", "na", "nb"):
+                if not d[k].num.is_zero and (Asymptote.of(d[k]) * Asymptote.of(c.weight_tf)).m > 0:
+                    raise ValueError(
+                        f"constraint {c.label}: the channel {src} -> {dst} grows without bound at high "
+                        f"frequency for {family.describe()} (an ideal derivative); set derivative_filter"
+                    )
+            cons_tfs.append(d)
+        self._terms = {k: _Term(t) for k, t in tfs.items()}
+        self._cterms = [{k: _Term(t) for k, t in d.items()} for d in cons_tfs]
+        self._gamma2 = np.array([c.gamma**2 for c in self.constraints])
+        self._asym = asym
+        self._casym = [{k: Asymptote.of(t) for k, t in d.items()} for d in cons_tfs]
+        self.r_min = float(min((1.0 / c.gamma for c in self.constraints if c.kind == "S"), default=0.5))
+        self.delta = float(delta)
+        # --- grid
+        feats = feature_frequencies([Pg] + [t for d in cons_tfs for t in d.values()] + list(Cs.values()))
+        feats = [f for f in feats if 1e-8 < f < 1e9] or [1.0]
+        #: the highest feature frequency [rad/s] of the loop's blocks
+        self.top_feature = max(feats)
+        # A delay needs a uniform grid (spacing ~ delta / tau) wherever the loop's terms are large, so a
+        # grid for huge gains costs ~ omega_max tau / delta points: a delay loop's grid stops at
+        # max(1e3 / tau_max, 100 x the top feature) when asked (the scan keeps the gains it verifies).
+        tau_max = max((float(q.delays.max()) for t in tfs.values() for q in (t.num, t.den) if not q.is_zero),
+                      default=0.0)
+        #: where a delay loop's grid stops when ``limit_for_delays`` (None: no delay)
+        self.delay_ceiling = max(1e3 / tau_max, 100.0 * self.top_feature) if tau_max > 0 else None
+        lo = min(feats) / 30.0
+        hi = max(feats) * 30.0
+        grid = np.geomspace(lo, hi, max(300, int(100 * math.log10(hi / lo)) + 1))
+        self._lo, self._hi = lo, hi
+        self._has_zero = bool(np.all(np.isfinite([_safe_eval(t, 0.0) for t in tfs.values()])))
+        if self._has_zero:
+            grid = np.concatenate([[0.0], grid])
+        self.omega = grid
+        self._vals = self._evaluate(grid)
+        self.refine(scale, ceiling=self.delay_ceiling if limit_for_delays else None)
+        self._limit_columns()
+
+    # ------------------------------------------------------------------ evaluation
+    def _evaluate(self, w: np.ndarray) -> dict[str, np.ndarray]:
+        s = 1j * w
+        out: dict[str, np.ndarray] = {}
+        for k, t in self._terms.items():
+            out[k], out["d" + k] = t(s)
+        for i, ct in enumerate(self._cterms):
+            for k, t in ct.items():
+                out[f"{k}{i}"], out[f"d{k}{i}"] = t(s)
+        return out
+
+    def values(self, w: np.ndarray) -> dict[str, np.ndarray]:
+        """Every quantity (values only) at the frequencies ``w`` (exact)."""
+        s = 1j * np.asarray(w, dtype=float)
+        z = np.zeros(s.shape, dtype=complex)
+        out = {k: (np.asarray(t.tf(s), dtype=complex) if not t.zero else z) for k, t in self._terms.items()}
+        for i, ct in enumerate(self._cterms):
+            for k, t in ct.items():
+                out[f"{k}{i}"] = np.asarray(t.tf(s), dtype=complex) if not t.zero else z
+        return out
+
+    def point(self, w: float) -> dict[str, complex]:
+        """Every quantity (values only) at one frequency: exact, for the final refinement."""
+        s = complex(0.0, float(w))
+        out = {k: complex(t.tf(s)) if not t.zero else 0j for k, t in self._terms.items()}
+        for i, ct in enumerate(self._cterms):
+            for k, t in ct.items():
+                out[f"{k}{i}"] = complex(t.tf(s)) if not t.zero else 0j
+        return out
+
+    def refine(self, scale: tuple[float, float], small: tuple[float, float] | None = None,
+               ceiling: float | None = None) -> None:
+        """Extend and refine the grid until every quantity is resolved for gains up to ``scale``
+        (and, at low frequency, for gains down to ``small``).
+
+        The grid first grows upward, a decade at a time, until the decaying
+        terms of ``L`` times these gains are below 1e-4 at its end (beyond, ``L``
+        only decays further and the limit columns take over), or until it
+        reaches ``ceiling`` [rad/s]; then points are inserted wherever the exact
+        derivative says the grid is too coarse.  A grid that stops at its
+        ceiling is valid for smaller gains only (``_Engine.x_valid``, ``y_valid``).
+        """
+        X, Y = (max(float(abs(x)), 1e-300) for x in scale)
+        self._scale = (X, Y)
+        # the smallest gains scanned: the low-frequency end of the D-decomposition curve must be resolved
+        # at their scale too (for small gains the crossover, and the boundaries, move to omega -> 0)
+        if small is not None:
+            self._small = (min(X, max(float(abs(small[0])), 1e-300)), min(Y, max(float(abs(small[1])), 1e-300)))
+        elif not hasattr(self, "_small"):
+            self._small = (X, Y)
+        Xs, Ys = self._small
+        for _ in range(12):
+            v = self._vals
+            lim = {k: self._asym[k] for k in ("a", "b")}
+            tail = sum(g * abs(v[k][-1]) for g, k in ((X, "a"), (Y, "b")) if lim[k].m < 0)
+            if not tail > 1e-4 or self.omega[-1] >= min(1e9, ceiling or math.inf):
+                break
+            top = min(10.0, max(1.0 + 1e-9, (ceiling or math.inf) / self.omega[-1]))  # not past the ceiling
+            new = self.omega[-1] * np.geomspace(1.0, top, max(3, int(100 * math.log10(top)) + 1))[1:]
+            nv = self._evaluate(new)
+            self.omega = np.concatenate([self.omega, new])
+            self._vals = {k: np.concatenate([self._vals[k], nv[k]]) for k in self._vals}
+        # downward: until the D-decomposition curve (1 + L = 0) has settled at its low-frequency end
+        # (for small gains the crossover, and the boundaries, move to omega -> 0)
+        for _ in range(12):
+            w0 = self.omega[1] if self._has_zero else self.omega[0]
+            if w0 <= 1e-12 or not self._curve_moves(0 if not self._has_zero else 1, Xs, Ys):
+                break
+            new = w0 * np.geomspace(1e-1, 1.0, 101)[:-1]
+            nv = self._evaluate(new)
+            cut = 1 if self._has_zero else 0
+            self.omega = np.concatenate([self.omega[:cut], new, self.omega[cut:]])
+            self._vals = {k: np.concatenate([self._vals[k][:cut], nv[k], self._vals[k][cut:]]) for k in self._vals}
+        for _ in range(_REFINE_ROUNDS):
+            bad = self._violations(X, Y)
+            if not np.any(bad) or self.omega.size >= _MAX_POINTS:
+                break
+            idx = np.flatnonzero(bad)
+            if self.omega.size + idx.size > _MAX_POINTS:
+                idx = idx[: _MAX_POINTS - self.omega.size]
+            new = 0.5 * (self.omega[idx] + self.omega[idx + 1])
+            nv = self._evaluate(new)
+            order = np.argsort(np.concatenate([self.omega, new]), kind="stable")
+            self.omega = np.concatenate([self.omega, new])[order]
+            self._vals = {k: np.concatenate([self._vals[k], nv[k]])[order] for k in self._vals}
+        self.n_grid = self.omega.size
+        if hasattr(self, "_limit"):
+            self._limit_columns()
+
+    def _curve_point(self, vals: dict[str, np.ndarray], i: int) -> tuple[float, float] | None:
+        u, a, b = vals["u"][i], vals["a"][i], vals["b"][i]
+        det = a.real * b.imag - a.imag * b.real
+        if not (np.isfinite(det) and det != 0 and np.isfinite(u)):
+            return None
+        return ((-u.real * b.imag + u.imag * b.real) / det, (-a.real * u.imag + a.imag * u.real) / det)
+
+    def _curve_moves(self, i: int, X: float, Y: float) -> bool:
+        """Does the D-decomposition curve (1 + L = 0) move by more than 1e-3 of the box in the decade
+        below grid column ``i``?  (Below, it has converged to its low-frequency end point, and a
+        boundary crossing there is within that distance of it.)"""
+        here = self._curve_point(self._vals, i)
+        lower = self._curve_point(self._evaluate(np.array([self.omega[i] / 10.0])), 0)
+        if here is None or lower is None:
+            return False
+        return bool(abs(here[0] - lower[0]) > 1e-3 * X or abs(here[1] - lower[1]) > 1e-3 * Y)
+
+    def _violations(self, X: float, Y: float) -> np.ndarray:
+        v = self._vals
+        h = np.diff(self.omega)
+        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
+        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
+        size = np.maximum(mag, self.r_min)
+        err = np.maximum(der[:-1], der[1:]) * h / np.minimum(size[:-1], size[1:])
+        bad = err > self.delta
+        for i, c in enumerate(self.constraints):
+            W = np.abs(v[f"W{i}"]) / c.gamma
+            dW = np.abs(v[f"dW{i}"]) / c.gamma
+            nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
+            nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
+            wn = W * nmag
+            wder = dW * nmag + W * nder
+            sz = np.maximum(np.maximum(wn, mag), self.r_min)
+            e2 = np.maximum(wder[:-1], wder[1:]) * h / np.minimum(sz[:-1], sz[1:])
+            bad |= e2 > self.delta
+        finite = np.isfinite(mag[:-1]) & np.isfinite(mag[1:])
+        return bad & finite & (h > 1e-12 * self.omega[1:])
+
+    def _limit_columns(self) -> None:
+        asyms = list(self._asym.values()) + [a for d in self._casym for a in d.values()]
+        delays = np.concatenate([a.delays for a in asyms if a.m >= 0] or [np.zeros(1)])
+        delays = delays[delays > 0]
+        if delays.size == 0:
+            theta = np.zeros(1)
+        else:
+            step = _common_step(delays)
+            if step is not None:
+                theta = np.linspace(0.0, 2.0 * math.pi / step, _LIMIT_SAMPLES, endpoint=False)
+            else:
+                theta = np.linspace(0.0, 64 * 2.0 * math.pi / float(delays.min()), 16 * _LIMIT_SAMPLES)
+        lim: dict[str, np.ndarray] = {}
+        for k, a in self._asym.items():
+            lim[k] = a.values(theta)
+        for i, d in enumerate(self._casym):
+            for k, a in d.items():
+                lim[f"{k}{i}"] = a.values(theta)
+        self._limit = lim
+        self.theta = theta
+
+    def asymptote(self, name: str) -> Asymptote:
+        """High-frequency form of ``'u'``, ``'a'`` or ``'b'``."""
+        return self._asym[name]
+
+    # ------------------------------------------------------------------ columns
+    def columns(self) -> dict[str, np.ndarray]:
+        """Grid and limit columns: ``u, a, b`` and ``nu{i}, na{i}, nb{i}, w2{i}`` per constraint."""
+        out: dict[str, np.ndarray] = {}
+        for k in ("u", "a", "b"):
+            out[k] = np.concatenate([self._vals[k], self._limit[k]])
+        for i, c in enumerate(self.constraints):
+            for k in ("nu", "na", "nb"):
+                out[f"{k}{i}"] = np.concatenate([self._vals[f"{k}{i}"], self._limit[f"{k}{i}"]])
+            W = np.concatenate([self._vals[f"W{i}"], self._limit[f"W{i}"]])
+            out[f"w2{i}"] = np.abs(W) ** 2 / c.gamma**2
+        return out
+
+    @property
+    def n_columns(self) -> int:
+        return self.n_grid + self.theta.size
+
+
+def _safe_eval(tf: TransferFunction, s: float) -> complex:
+    try:
+        return complex(tf(s))
+    except (ZeroDivisionError, OverflowError, ValueError):
+        return complex(np.inf)
