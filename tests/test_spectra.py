@@ -370,3 +370,11 @@ def test_multiple_root_is_separated_from_a_close_simple_root():
     assert not st.stable
     assert np.any(np.abs(st.unstable_roots - 0.0044051755) < 1e-9)   # the real root that crossed at Kp = 0
     assert not np.any(st.unstable_roots == 0)                        # the removable double root is cancelled
+
+
+def test_a_root_exactly_at_zero_is_unstable():
+    """h = s^n: the root bound at Re s >= 0 is 0, which used to end the search before s = 0 was looked at."""
+    for n in (1, 2, 3):
+        st = stability(QuasiPolynomial.from_poly([1.0] + [0.0] * n))
+        assert not st.stable and st.unstable_roots.size == n and np.all(st.unstable_roots == 0)
+    assert stability(QuasiPolynomial.from_poly([1.0, 2.0])).stable

@@ -231,8 +231,8 @@ def _search_right_of(q: QuasiPolynomial, alpha: float, ignore: Any, budget: dict
     lo, width = alpha, 1.0
     while True:
         Rlo = root_bound(q, lo)
-        if Rlo < lo or Rlo == 0.0:
-            break  # |s| <= R(lo) < lo <= Re s is impossible: nothing further right
+        if Rlo < lo or (Rlo == 0.0 and lo > 0.0):
+            break  # |s| <= R(lo) < lo <= Re s is impossible: nothing further right (R = 0 leaves s = 0)
         hi = min(lo + width, Rlo + 1.0)
         pad = 1e-3 * max(1.0, Rlo)
         r = roots(q, (lo, hi, -pad, Rlo + pad), ignore=ignore, **(budget or {}))

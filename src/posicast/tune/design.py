@@ -197,7 +197,7 @@ def _check_range(r: Any, name: str) -> tuple[float, float] | None:
     return lo, hi
 
 
-def _check_blocks(G: Any, S: Any, structure: str) -> tuple[TransferFunction, Any]:
+def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[TransferFunction, Any]:
     if G is None:
         raise TypeError("G must be a plant (TransferFunction, (num, den), scipy/python-control system), got None")
     try:
@@ -222,7 +222,31 @@ def _check_blocks(G: Any, S: Any, structure: str) -> tuple[TransferFunction, Any
                 "the inverse_shaper structure needs 1/S proper: S must be biproper "
                 "(every delay shaper and the notch are); this S is strictly proper"
             )
+        if structure == "feedforward":
+            _check_open_loop_stable(St, "S", "in the feedforward structure it filters w outside the loop")
+    if F is not None:
+        Ft = as_transfer(F, "F")
+        if Ft.num.degree > Ft.den.degree:
+            raise ValueError("F must be proper (the flexible load is a physical system)")
+        _check_open_loop_stable(Ft, "F", "it acts on the plant output outside the loop")
     return Gt, S
+
+
+def _check_open_loop_stable(tf: TransferFunction, name: str, why: str) -> None:
+    """Raise if ``tf`` has a pole with ``Re s >= 0`` (removable singularities excepted): a block
+    outside the loop that no controller can stabilise."""
+    from ..loops import removable_points
+    from ..spectra import stability
+    from ..spectra.rootfinder import RootFindingError
+
+    if tf.den.degree < 1 and tf.den.is_polynomial:  # a constant (times a delay): no pole
+        return
+    try:
+        st = stability(tf.den, ignore=removable_points(tf.num, tf.den))
+    except (RootFindingError, ValueError) as exc:
+        raise ValueError(f"{name}: its poles could not be certified ({exc})") from None
+    if not st.stable:
+        raise ValueError(f"{name} is unstable ({st.reason}); {why}, so no controller can make it stable")
 
 
 def _scale_estimate(loop0: Loop, family: ControllerFamily) -> tuple[float, float]:
@@ -336,7 +360,7 @@ def tune(
         if not isinstance(c, Constraint):
             raise TypeError(f"constraints must be posicast.tune.Constraint objects, got {type(c).__name__}")
     n_lines = v.integer(n_lines, "n_lines", 11)
-    Gt, S = _check_blocks(G, S, structure)
+    Gt, S = _check_blocks(G, S, structure, F)
     xr = _check_range(x_range, f"{family.x}_range")
     yr = _check_range(y_range, f"{family.y}_range")
     tuner = _Tuner(Gt, S, structure, family, cons, F)

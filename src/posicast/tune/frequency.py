@@ -173,6 +173,10 @@ class FrequencyData:
                     "derivative too; or set derivative_filter)"
                 )
         cons_tfs: list[dict[str, TransferFunction]] = []
+        # (R, through the controller, W) per constraint: values() builds every term from P, R, W and C's parts
+        self._factors: list[tuple[TransferFunction, bool, TransferFunction]] = []
+        self._cpolys = tuple((np.trim_zeros(np.asarray(getattr(family, "n" + k), dtype=float), "f"),
+                              np.trim_zeros(np.asarray(family.dC, dtype=float), "f")) for k in ("0", "x", "y"))
         for c in self.constraints:
             src, dst = c.channel
             try:
@@ -192,6 +196,7 @@ class FrequencyData:
                         f"frequency for {family.describe()} (an ideal derivative); set derivative_filter"
                     )
             cons_tfs.append(d)
+            self._factors.append((R, through, c.weight_tf))
         self._terms = {k: _Term(t) for k, t in tfs.items()}
         self._cterms = [{k: _Term(t) for k, t in d.items()} for d in cons_tfs]
         self._gamma2 = np.array([c.gamma**2 for c in self.constraints])
@@ -235,23 +240,39 @@ class FrequencyData:
         return out
 
     def values(self, w: np.ndarray) -> dict[str, np.ndarray]:
-        """Every quantity (values only) at the frequencies ``w`` (exact)."""
-        s = 1j * np.asarray(w, dtype=float)
+        """Every quantity (values only) at the frequencies ``w`` (exact).
+
+        For ``omega > 0`` the plant ``P``, each constraint's ``R`` and ``W`` are
+        evaluated once and combined with the controller's parts ``c0, cx, cy``
+        (``u = 1 + c0 P``, ``a = cx P``, ``b = cy P``; ``nu, na, nb = (c0, cx, cy) R``
+        or ``R, 0, 0``): the same numbers as the combined transfer functions, at a
+        third of the cost.  ``omega = 0`` goes through the combined transfer
+        functions, which resolve a pole of ``C`` cancelled by a zero of ``P``.
+        """
+        w = np.asarray(w, dtype=float)
+        s = 1j * w
         z = np.zeros(s.shape, dtype=complex)
-        out = {k: (np.asarray(t.tf(s), dtype=complex) if not t.zero else z) for k, t in self._terms.items()}
-        for i, ct in enumerate(self._cterms):
-            for k, t in ct.items():
-                out[f"{k}{i}"] = np.asarray(t.tf(s), dtype=complex) if not t.zero else z
+        P = np.asarray(self.plant(s), dtype=complex).reshape(s.shape)
+        with np.errstate(divide="ignore", invalid="ignore"):  # s = 0 is replaced below
+            c0, cx, cy = (np.polyval(n, s) / np.polyval(d, s) if n.size else z for n, d in self._cpolys)
+            out = {"u": 1.0 + c0 * P, "a": cx * P, "b": cy * P}
+            for i, (R, through, W) in enumerate(self._factors):
+                r = np.asarray(R(s), dtype=complex).reshape(s.shape)
+                out[f"nu{i}"], out[f"na{i}"], out[f"nb{i}"] = (c0 * r, cx * r, cy * r) if through else (r, z, z)
+                out[f"W{i}"] = np.asarray(W(s), dtype=complex).reshape(s.shape)
+        at0 = np.flatnonzero(w == 0.0)
+        if at0.size:
+            s0 = s[at0]
+            for k, t in self._terms.items():
+                out[k][at0] = np.asarray(t.tf(s0), dtype=complex) if not t.zero else 0j
+            for i, ct in enumerate(self._cterms):
+                for k, t in ct.items():
+                    out[f"{k}{i}"][at0] = np.asarray(t.tf(s0), dtype=complex) if not t.zero else 0j
         return out
 
     def point(self, w: float) -> dict[str, complex]:
         """Every quantity (values only) at one frequency: exact, for the final refinement."""
-        s = complex(0.0, float(w))
-        out = {k: complex(t.tf(s)) if not t.zero else 0j for k, t in self._terms.items()}
-        for i, ct in enumerate(self._cterms):
-            for k, t in ct.items():
-                out[f"{k}{i}"] = complex(t.tf(s)) if not t.zero else 0j
-        return out
+        return {k: complex(v[0]) for k, v in self.values(np.array([float(w)])).items()}
 
     def refine(self, scale: tuple[float, float], small: tuple[float, float] | None = None,
                ceiling: float | None = None) -> None:

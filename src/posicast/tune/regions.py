@@ -535,11 +535,18 @@ class _Engine:
             out[sel] = _quadratic_root(u + x[sel] * a, nu + x[sel] * na, b, nb, w2, root[sel])
         return out
 
-    def _polish_all(self, x: np.ndarray, ends: list[Any], values: np.ndarray, upper: np.ndarray) -> np.ndarray:
-        """Parabolic correction of interval ends from their columns' neighbours (vectorised).
+    def _polish_all(self, x: np.ndarray, ends: list[Any], values: np.ndarray, upper: np.ndarray,
+                    rounds: int = 4) -> np.ndarray:
+        """Exact interval ends: the extremum over frequency of each end's root, refined between its
+        column's neighbours (vectorised over all ends).
 
         An upper end of an admissible interval is the minimum over frequency of a
         forbidden interval's lower root (``upper``); a lower end is a maximum.
+        Each round evaluates the exact frequency response at 9 points per end (one
+        call for all ends) and keeps the two intervals around the best point, so the
+        bracket shrinks 4x per round; the grid value stands where nothing better is
+        found.  (A parabola through three grid points, used before, can overshoot a
+        sharp minimum and make the region smaller than it is.)
         """
         idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < self.ng - 1]
         if not idx:
@@ -549,21 +556,33 @@ class _Engine:
         ci = np.array([ends[i][1] for i in idx])
         rt = np.array([ends[i][2] for i in idx])
         xs = x[k]
-        f = np.stack([self._root_values(xs, col + d, ci, rt) for d in (-1, 0, 1)])
-        w = np.stack([self.omega[col + d] for d in (-1, 0, 1)])
-        with np.errstate(invalid="ignore", divide="ignore"):
-            d1 = (f[1] - f[0]) / (w[1] - w[0])
-            d2 = (f[2] - f[1]) / (w[2] - w[1])
-            curv = (d2 - d1) / (w[2] - w[0])
-            wv = 0.5 * (w[0] + w[1]) - d1 / (2 * curv)
-            fv = f[1] + d1 * (wv - w[1]) + curv * (wv - w[0]) * (wv - w[1])
-        up = upper[k]
-        ok = np.all(np.isfinite(f), axis=0) & np.isfinite(fv) & (w[0] <= wv) & (wv <= w[2])
-        ok &= np.where(up, curv > 0, curv < 0)
+        sign = np.where(upper[k], 1.0, -1.0)
+        lo = self.omega[col - 1].astype(float)
+        hi = self.omega[col + 1].astype(float)
+        best = sign * values[k]
+        best = np.where(np.isfinite(best), best, _INF)
+        t = np.linspace(0.0, 1.0, 9)
+        for _ in range(rounds):
+            w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
+            vals = self.fd.values(w.ravel())
+            f = np.full(w.shape, _INF)
+            for c in np.unique(ci):
+                sel = np.flatnonzero(ci == c)
+                rows = (sel[:, None] * 9 + np.arange(9)[None, :]).ravel()
+                w2 = np.abs(vals[f"W{c}"][rows]) ** 2 / self.fd.constraints[int(c)].gamma ** 2
+                r = _quadratic_root(vals["u"][rows] + np.repeat(xs[sel], 9) * vals["a"][rows],
+                                    vals[f"nu{c}"][rows] + np.repeat(xs[sel], 9) * vals[f"na{c}"][rows],
+                                    vals["b"][rows], vals[f"nb{c}"][rows], w2, np.repeat(rt[sel], 9))
+                f[sel] = (np.repeat(sign[sel], 9) * r).reshape(-1, 9)
+            f = np.where(np.isfinite(f), f, _INF)
+            j = np.argmin(f, axis=1)
+            fj = f[np.arange(f.shape[0]), j]
+            best = np.minimum(best, fj)
+            wj = w[np.arange(w.shape[0]), j]
+            step = (hi - lo) / 8.0
+            lo, hi = np.maximum(lo, wj - step), np.minimum(hi, wj + step)
         out = values.copy()
-        cur = values[k]
-        better = np.where(up, np.minimum(cur, fv), np.maximum(cur, fv))
-        out[k] = np.where(ok, better, cur)
+        out[k] = np.where(np.isfinite(best), sign * best, values[k])
         return out
 
     def _roots_at(self, x: float, vals: dict[str, np.ndarray], ci: int, root: int) -> np.ndarray:
