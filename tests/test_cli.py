@@ -76,6 +76,16 @@ def test_tune_text_and_json(capsys, tmp_path):
     assert "kp = 32.89" in out and "stable" in out and plot.stat().st_size > 1000
 
 
+def test_tune_without_a_controller_exits_1_with_valid_json(capsys):
+    """An unbounded (or empty) region is a result: printed, strict JSON (null, not NaN), exit status 1."""
+    assert main(["tune", "--num", "1", "--den", "1 -1 0", "--json"]) == 1
+    out = capsys.readouterr().out
+    data = json.loads(out, parse_constant=lambda c: pytest.fail(f"non-JSON constant {c}"))
+    assert data["unbounded"] and data["gains"] is None and data["ms"] is None and "kp_range" in data["reason"]
+    assert main(["tune", "--num", "1", "--den", "1 1 0", "--ms", "0.9"]) == 1
+    assert "no admissible controller" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     "argv, word",
     [

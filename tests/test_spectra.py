@@ -25,6 +25,7 @@ from posicast.spectra import (
     roots,
     spectral_abscissa,
     stability,
+    unstable_count,
 )
 
 SEED000_MODE = Mode(10.0, 0.03)  # F(s) = s / (s^2 + 0.6 s + 100), seed 000 eq. 26
@@ -378,3 +379,31 @@ def test_a_root_exactly_at_zero_is_unstable():
         st = stability(QuasiPolynomial.from_poly([1.0] + [0.0] * n))
         assert not st.stable and st.unstable_roots.size == n and np.all(st.unstable_roots == 0)
     assert stability(QuasiPolynomial.from_poly([1.0, 2.0])).stable
+
+
+def test_unstable_count_agrees_with_the_located_roots():
+    """The perimeter-only count (used to label tuning cells) against stability(), which locates every
+    root with Re s >= 0: random retarded quasi-polynomials, shifted so that some are unstable, and the
+    crane's inverse-DeZV loop with its removable root at s = 0 ignored."""
+    rng = np.random.default_rng(11)
+    counts = []
+    for _ in range(12):
+        deg = int(rng.integers(2, 5))
+        m = int(rng.integers(1, 3))
+        coeffs = np.zeros((m + 1, deg + 1))
+        coeffs[0] = rng.uniform(0.2, 3.0, size=deg + 1)
+        coeffs[0, -1] = 1.0
+        coeffs[0, 0] -= rng.uniform(0.0, 4.0)  # a shift of the constant term: some unstable, some not
+        coeffs[1:, :deg] = rng.normal(size=(m, deg))
+        h = QuasiPolynomial(coeffs, np.concatenate([[0.0], np.sort(rng.uniform(0.2, 2.0, size=m))]))
+        n = unstable_count(h)
+        counts.append(n)
+        assert n == stability(h).unstable_roots.size
+    assert min(counts) == 0 and max(counts) >= 1  # both kinds were exercised
+    case = posicast.cases.ALL["gantry_crane"]
+    for kp, expect in ((23.3, 0), (400.0, None)):
+        loop = case.loop("inverse_shaper", posicast.design("dezv", case.mode), C=([0.465, kp], [1.0]))
+        n = unstable_count(loop.characteristic, ignore=loop.cancelled)
+        assert n == loop.stability().unstable_roots.size
+        if expect is not None:
+            assert n == expect

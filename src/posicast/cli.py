@@ -1,7 +1,8 @@
 """Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``.
 
 Every error (bad argument, out-of-range value) prints one line to stderr and
-exits with status 2; no traceback.
+exits with status 2; no traceback.  ``posicast tune`` exits with status 1 when
+it ran but found no controller (an empty or unbounded region, printed as such).
 """
 
 from __future__ import annotations
@@ -167,19 +168,23 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         _save_atomic(fig, out)
     if args.json:
         ext = r.region.extent()
+
+        def num(v: Any) -> Any:  # JSON has no NaN or inf: null
+            return float(v) if v is not None and math.isfinite(v) else None
+
         print(json.dumps({
             "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
             "empty": r.empty, "unbounded": r.unbounded,
             "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
-            "ms": None if r.empty else r.ms, "omega_ms": None if r.empty else r.omega_ms,
-            "stable": r.stable, "reason": r.reason,
-            "region": None if ext is None else {r.family.x: [ext[0], ext[1]], r.family.y: [ext[2], ext[3]]},
-        }, indent=2, default=lambda v: None if isinstance(v, float) and not math.isfinite(v) else v))
+            "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
+            "region": None if ext is None else {r.family.x: [num(ext[0]), num(ext[1])],
+                                                r.family.y: [num(ext[2]), num(ext[3])]},
+        }, indent=2))
     else:
         print(r.summary())
         for _, out in figures:
             print(f"wrote {out}")
-    return 0
+    return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
 
 
 def _n_modes(text: str) -> Any:

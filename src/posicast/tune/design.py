@@ -158,8 +158,9 @@ class TuningResult:
 
     def summary(self) -> str:
         """A few lines: controller, achieved norms, stability, region."""
-        if self.empty or self.gains is None:
-            return f"{self.family.describe()} in {self.structure}: no admissible controller. {self.reason}"
+        if self.gains is None:
+            what = "unbounded, no design returned" if self.unbounded else "no admissible controller"
+            return f"{self.family.describe()} in {self.structure}: {what}. {self.reason}"
         g = ", ".join(f"{k} = {self.gains[k]:.6g}" for k in ("kp", "ki", "kd") if self._gain(k) is not None)
         cons = "; ".join(f"{c.label}: {n:.6g}{' (active)' if a else ''}"
                          for c, n, a in zip(self.constraints, self.norms, self.active))
@@ -938,6 +939,18 @@ def tune_pid(
     The other two gains span the plane; ``maximize`` (default ``'ki'``, or
     ``'kp'`` when ``ki`` is fixed) is the secondary criterion.  Other
     parameters as :func:`tune_pd`.
+
+    Examples
+    --------
+    ``1 / (s + 1)^3`` with ``Kd = 0.5`` fixed: the derivative action buys
+    integral gain at the same robustness (the PI alone reaches ``Ki = 0.461``):
+
+    >>> G = ([1.0], [1.0, 3.0, 3.0, 1.0])
+    >>> r = tune_pid(G, ms=1.6, fixed={"kd": 0.5}, derivative_filter=0.01)
+    >>> r.stable, r.kd, abs(r.ms - 1.6) < 1e-6, r.active
+    (True, 0.5, True, (True,))
+    >>> round(r.ki, 3), round(tune_pi(G, ms=1.6).ki, 3)
+    (0.811, 0.461)
     """
     fam = pid_family(fixed, maximize, derivative_filter)
     ranges = {"kp": kp_range, "ki": ki_range, "kd": kd_range}
