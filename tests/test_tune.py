@@ -10,6 +10,7 @@ certified spectrum check per sampled controller).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -348,6 +349,21 @@ def test_bad_input_is_refused_with_a_clear_message():
         tune_pd(G, F=([1.0], [1.0, 0.0]))
     with pytest.raises(ValueError, match="F must be proper"):
         tune_pd(G, F=([1.0, 0.0, 0.0], [1.0, 1.0]))
+
+
+def test_inverse_lumped_shaper_without_strong_stability_is_refused_at_once():
+    """Inverse ZVD in the loop: the characteristic is neutral for every PD, with the shaper's impulses as
+    its difference operator (0.26, 0.49, 0.25): not strongly stable, so every gain is unstable by the
+    spectrum's verdict.  The result says why without scanning; the inverse ZV (first impulse dominant) is
+    strongly stable and gets a design."""
+    zvd = posicast.design("zvd", CRANE.mode)
+    t0 = time.perf_counter()
+    r = tune_pd(CRANE.G, zvd, "inverse_shaper", ms=2.0)
+    assert r.empty and "not strongly stable" in r.reason and time.perf_counter() - t0 < 5.0
+    st = CRANE.loop("inverse_shaper", zvd, C=([0.05, 0.5], [1.0])).stability()
+    assert not st.stable and "not strongly stable" in st.reason
+    zv = tune_pd(CRANE.G, posicast.design("zv", CRANE.mode), "inverse_shaper", ms=2.0)
+    assert zv.stable and abs(zv.ms - 2.0) < 1e-6 and zv.stability.kind == "neutral"
 
 
 def test_empty_regions_are_results_not_exceptions():

@@ -391,6 +391,11 @@ def tune(
               ceiling=fd.delay_ceiling)
     engine = _Engine(fd, tuner.loop, tuner.char_terms, tuner.m0)
     engine.y_window = yr
+    weak = _weakly_neutral(engine)
+    if weak is not None:  # no gain of this family can help: say so at once, with the reason
+        region = Region(engine, family, [], _Components(), yr)
+        timings["total"] = time.perf_counter() - t_start
+        return _with_timings(_empty(tuner, engine, region, weak), timings)
     # a delay loop's pass-1 grid stops at fd.delay_ceiling (else e^{-s} / (s + 1) would stretch it to
     # 1e9 rad/s for hopeless huge gains): the sweep keeps the lines the grid verifies
     xs1 = xs1[np.abs(xs1) <= engine.x_valid]
@@ -521,6 +526,29 @@ def _optimum(tuner: _Tuner, engine: _Engine, region: Region, yr: tuple[float, fl
         why += f" (e.g. {fam.x} = {last.point[0]:.6g}, {fam.y} = {last.point[1]:.6g}: " + (
             "unstable" if not last.stable else "; ".join(bad)) + ")"
     return _empty(tuner, engine, region, why + "; please report this case")
+
+
+def _weakly_neutral(engine: _Engine) -> str | None:
+    """Why no controller of the family can stabilise the loop robustly, or None.
+
+    When the gains do not reach the highest power of ``s`` in the characteristic
+    quasi-polynomial, its difference operator ``sum_k d_k e^{-s theta_k}`` is the
+    same for every controller.  If it is not strongly stable (Hale:
+    ``sum_{k>0} |d_k| >= |d_0|`` for a scalar operator), arbitrarily small changes
+    of the delays put root chains in the right half-plane, so no gain gives a loop
+    that :func:`posicast.stability` (issue #3) calls stable: e.g. an inverse ZVD or
+    EI shaper in the loop (impulses 1/4, 1/2, 1/4: 0.75 >= 0.25).
+    """
+    if not engine.neutral_possible or engine.lead_varies:
+        return None
+    d = np.abs(engine.lead[0])
+    if d.size < 2 or float(np.sum(d[1:])) < float(d[0]):
+        return None
+    return (f"the loop is neutral for every controller of this family, and its difference operator is not "
+            f"strongly stable (sum of |d_k| = {float(np.sum(d[1:])):.4g} >= |d_0| = {float(d[0]):.4g}, delays "
+            f"{', '.join(f'{t:.4g}' for t in engine.lead_delays)} s): arbitrarily small delay errors make it "
+            "unstable, so no gain is admissible; a shaper whose first impulse dominates (ZV) or a "
+            "distributed-delay shaper (seed 001 eq. 12) avoids this")
 
 
 def _is_cut(end: Any) -> bool:
