@@ -33,8 +33,10 @@ class SimulationResponse:
     sample_rate : float or None
     accuracy : float
         Continuous mode with the shaper in the loop: max |y| difference to a run
-        at twice the internal step (0 for the exact and sampled modes, whose
-        sampled values are exact for the discretised controller).
+        at twice the internal step when ``substeps`` is even (an estimate of that
+        run's error, about three times this one's), at half the step when it is
+        odd (then about this run's own error); 0 for the exact and sampled modes,
+        whose sampled values are exact for the discretised controller.
     diverged : float or None
         Time at which a signal exceeded the divergence limit.
     diverged_signal : str or None

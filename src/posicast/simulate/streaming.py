@@ -42,7 +42,15 @@ from scipy import signal
 from posicast import _validate as v
 from posicast.shapers.base import DistributedPart, Shaper
 
-__all__ = ["DiscreteShaper", "ShaperFilter", "discretize", "shape_signal", "shortest_delay", "FRACTIONAL"]
+__all__ = [
+    "DiscreteShaper",
+    "ShaperFilter",
+    "discretize",
+    "shape_signal",
+    "shortest_delay",
+    "prewarped_step",
+    "FRACTIONAL",
+]
 
 FRACTIONAL = ("linear", "lagrange3", "round")
 
@@ -265,6 +273,18 @@ def _part_taps(p: DistributedPart, Ts: float, fractional: str) -> tuple[int, np.
     return k0, w
 
 
+def prewarped_step(S: Shaper, Ts: float) -> float:
+    """The step of the plain bilinear transform that is Tustin prewarped at the shaper's (first) mode.
+
+    ``s = (w0 / tan(w0 Ts / 2)) (z - 1) / (z + 1)`` is the bilinear transform with
+    the step ``2 tan(w0 Ts / 2) / w0``; ``Ts`` itself for a shaper without modes.
+    """
+    if not S.modes:
+        return Ts
+    w0 = S.modes[0].omega
+    return 2.0 * math.tan(w0 * Ts / 2.0) / w0
+
+
 def _iir(S: Shaper, Ts: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
     if S.continuous is None:
         return None, None
@@ -275,13 +295,7 @@ def _iir(S: Shaper, Ts: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, No
             "S.continuous contains delays (e.g. a product of a delay shaper and an IIR notch); only a "
             "delay-free IIR part can be discretised"
         ) from exc
-    # Tustin prewarped at the mode: s = (w0 / tan(w0 Ts / 2)) (z - 1) / (z + 1), i.e. the plain
-    # bilinear transform with the step 2 tan(w0 Ts / 2) / w0.
-    T_eff = Ts
-    if S.modes:
-        w0 = S.modes[0].omega
-        T_eff = 2.0 * math.tan(w0 * Ts / 2.0) / w0
-    bz, az, _ = signal.cont2discrete((ct.num, ct.den), T_eff, method="bilinear")
+    bz, az, _ = signal.cont2discrete((ct.num, ct.den), prewarped_step(S, Ts), method="bilinear")
     bz = np.atleast_1d(np.asarray(bz, dtype=float).ravel())
     az = np.atleast_1d(np.asarray(az, dtype=float).ravel())
     return bz / az[0], az / az[0]

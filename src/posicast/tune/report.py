@@ -32,13 +32,15 @@ import numpy as np
 from ..io.report import Report
 from .seed001 import PAPER_DELAY, Table1Row, crane_shaper, paper_point_ms, table1
 
-__all__ = ["seed001_section", "TF", "SIM_STEP", "HORIZON", "STEP_AT", "RESIDUAL_AFTER"]
+__all__ = ["seed001_section", "TF", "SIM_STEP", "SUBSTEPS", "HORIZON", "STEP_AT", "RESIDUAL_AFTER"]
 
 #: Derivative filter [s] of the simulated PDs.  0.002 s moved Kp by up to 8 % and Kd by up to 10 % from the
 #: ideal designs; 0.001 s halves that.
 TF = 1e-3
-#: Time step [s] of the simulations (see the caption of the response figures for why not finer).
-SIM_STEP = 2e-3
+#: Time step [s] of the simulated responses; loops with a distributed-delay shaper inside run two FOH
+#: substeps per step (0.5 ms), and their accuracy estimate compares with a run at 1 ms.
+SIM_STEP = 1e-3
+SUBSTEPS = 2
 #: Simulated time [s], instant of the steps [s], and start of the residual-vibration window [s].
 HORIZON = 20.0
 STEP_AT = 1.0
@@ -189,11 +191,10 @@ def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
 def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
     """The loop to simulate for a design, how it is simulated, and the extra arguments of ``simulate``.
 
-    The in-loop notch is simulated through the equivalent rational loop (same
-    closed-loop transfer functions from w and d to z and y): control action with
-    the controller ``C S``; inverse shaper as the shaper ``S`` in feedforward with
-    the controller ``C / S``.  ``posicast.simulate`` diverges on the notch inside
-    the loop for this plant (numerical, see the figure caption).
+    The in-loop notch is rational, so its loop is simulated exactly through the
+    equivalent shaper-free loop (same closed-loop transfer functions from w and d
+    to z and y): control action with the controller ``C S``; inverse shaper as
+    the shaper ``S`` in feedforward with the controller ``C / S``.
     """
     from ..cases import ALL
     from ..loops import control_action, feedforward
@@ -202,7 +203,7 @@ def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
     if row.shaper is None:
         return res.loop, "continuous (exact)", {}
     if row.shaper != "notch":
-        return res.loop, f"continuous, {1e3 * SIM_STEP:g} ms FOH step", {"substeps": 1}
+        return res.loop, f"continuous, {1e3 * SIM_STEP / SUBSTEPS:g} ms FOH step", {"substeps": SUBSTEPS}
     case = ALL["gantry_crane"]
     S = crane_shaper("notch")
     if row.structure == "control_action":
@@ -257,6 +258,8 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
                 axes = figs[key][1]
                 axes[0, col].plot(resp.time, resp.z, **style)
                 axes[1, col].plot(resp.time, resp.y, **style)
+            if rw.accuracy > 0 or rd.accuracy > 0:
+                how += f" (accuracy estimate of y: {max(rw.accuracy, rd.accuracy):.1e})"
             if rw.diverged is not None or rd.diverged is not None:
                 how += " — DIVERGED"
                 m[(structure, row.label)] = dict.fromkeys(("tv", "amp_w", "amp_d"), math.nan)
@@ -341,15 +344,11 @@ def _response_caption(key: str, dkp: float, dkd: float, ok: tuple[bool, float]) 
         + (", all certified stable" if ok[0] else ", NOT all stable (see the table)")
         + f", achieved Ms within {100 * ok[1]:.2g} % of the target. "
         f"Continuous-time simulation on a {1e3 * SIM_STEP:g} ms grid: the loops with a distributed-delay shaper "
-        "use the FOH step of that size; the shaper-free loops are exact; the notch loops are simulated exactly "
-        "as the equivalent rational loops (control action: controller C·S; inverse shaper: S as feedforward with "
-        "controller C/S; the same transfer functions from w and d to z and y). Why not finer (measured when this "
-        "section was written): on this ninth-order plant posicast.simulate loses accuracy at steps of 1 ms "
-        "(1 kHz sampled mode included), diverges at 0.5 ms and below, and diverges on the in-loop notch at "
-        "1 ms, although every loop is certified stable (a simulator issue, reported with this section). The "
-        "2 ms results were checked once against an independent 20 µs state-space simulation of the DeZV and "
-        "notch loops: largest |Δy| 0.023 (in the transient), 0.012 after t = 5 s. The simulator's own accuracy "
-        "estimate (a comparison with a 1 ms run) is therefore not shown.")
+        f"inside run {SUBSTEPS} FOH substeps per step, and the table gives the simulator's own accuracy estimate "
+        "(the largest |Δy| to a run at twice the step, an estimate of that run's error; this one's is about a "
+        "third of it); the shaper-free loops are exact; the notch loops are simulated exactly as the equivalent "
+        "rational loops (control action: controller C·S; inverse shaper: S as feedforward with controller C/S; "
+        "the same transfer functions from w and d to z and y).")
 
 
 # ---------------------------------------------------------------------- the section
