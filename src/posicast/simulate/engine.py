@@ -362,45 +362,70 @@ def _cancel_origin(tf: TransferFunction) -> TransferFunction:
 def _delay_free_loop(loop: Loop, sig: dict[str, np.ndarray], r: np.ndarray, h: float, cm: str) -> dict[str, np.ndarray]:
     """The loop without a shaper inside, as one discrete state-space system (:func:`propagate`).
 
-    ``C`` is discretised by ``cm``, ``G`` and ``F G`` exactly for a held
-    plant input; ``r`` is the (already shaped) reference.  Every signal is
-    computed from the closed-loop state, so nothing passes through a
-    high-order transfer-function polynomial.
+    ``C`` is discretised by ``cm``; the plant and the load, ``G`` with ``F``
+    on its output, are discretised together, exactly for held ``up`` and
+    ``d`` (one zero-order hold of the cascade ``x_g' = A_g x_g + B_g up``,
+    ``x_f' = A_f x_f + B_f (C_g x_g + d)``); ``r`` is the (already shaped)
+    reference.  Every signal, ``y`` included, comes from one propagation of
+    the closed-loop state, so nothing passes through a high-order
+    transfer-function polynomial.
     """
+    from .discrete import _zoh
+
     Ac, Bc, Cc, Dc = discretize_ss(loop.C, h, cm)
-    Ag, Bg, Cg, Dg = discretize_ss(loop.G, h, "zoh")
+    Ag, Bg, Cg, Dg = state_space(loop.G)
     if Dg != 0:
         raise ValueError("G must be strictly proper for simulation (a held input feeds straight through)")
-    nc, ng = Ac.shape[0], Ag.shape[0]
-    n = nc + ng
-    # e = r - n - d - Cg xg ; v = Cc xc + Dc e ; up = v + di
+    Af, Bf, Cf, Df = state_space(loop.F)
+    nc, ng, nf = Ac.shape[0], Ag.shape[0], Af.shape[0]
+    npl = ng + nf
+    # the continuous cascade G -> F, inputs (up, d), outputs (G xg, y - Df d), held over each step
+    Ap = np.zeros((npl, npl))
+    Ap[:ng, :ng] = Ag
+    Ap[ng:, :ng] = Bf @ Cg
+    Ap[ng:, ng:] = Af
+    Bp = np.zeros((npl, 2))
+    Bp[:ng, 0] = Bg[:, 0]
+    Bp[ng:, 1] = Bf[:, 0]
+    Rp = np.zeros((2, npl))
+    Rp[0, :ng] = Cg[0]
+    Rp[1, :ng] = Df * Cg[0]
+    Rp[1, ng:] = Cf[0]
+    Ap, Bp, Rp = balance(Ap, Bp, Rp)
+    Phi, Gam = _zoh(Ap, Bp, h)
+    gz, gy = Rp
+    n = nc + npl
+    # e = ext - G xg with ext = r - n - d;  v = Cc xc + Dc e;  up = v + di
     ext = r - sig["n"] - sig["d"]
     A = np.zeros((n, n))
-    ic, ig = slice(0, nc), slice(nc, n)
+    ic, ip = slice(0, nc), slice(nc, n)
     A[ic, ic] = Ac
-    A[ic, ig] = -Bc @ Cg
-    A[ig, ic] = Bg @ Cc
-    A[ig, ig] = Ag - Dc * Bg @ Cg
-    b_ext = np.concatenate([Bc[:, 0], Dc * Bg[:, 0]])
-    b_di = np.concatenate([np.zeros(nc), Bg[:, 0]])
+    A[ic, ip] = -np.outer(Bc[:, 0], gz)
+    A[ip, ic] = np.outer(Gam[:, 0], Cc[0]) if nc else np.zeros((npl, 0))
+    A[ip, ip] = Phi - Dc * np.outer(Gam[:, 0], gz)
+    b_ext = np.concatenate([Bc[:, 0], Dc * Gam[:, 0]])
+    b_di = np.concatenate([np.zeros(nc), Gam[:, 0]])
+    b_d = np.concatenate([np.zeros(nc), Gam[:, 1]])
     rows = np.array([
-        np.concatenate([np.zeros(nc), Cg[0]]),
-        np.concatenate([Cc[0] if nc else np.zeros(0), -Dc * Cg[0]]),
+        np.concatenate([np.zeros(nc), gz]),                                   # G xg
+        np.concatenate([Cc[0] if nc else np.zeros(0), -Dc * gz]),             # v - Dc ext
+        np.concatenate([np.zeros(nc), gy]),                                   # y - Df d
     ])
-    # the coupling terms Bc Cg, Bg Cc are not balanced by the blocks' own scaling: balance the loop
-    A, Bcols, rows = balance(A, np.column_stack([b_ext, b_di]), rows)
+    # the coupling terms are not balanced by the blocks' own scaling: balance the loop
+    A, Bcols, rows = balance(A, np.column_stack([b_ext, b_di, b_d]), rows)
     inputs = [(Bcols[:, 0], ext)]
     if np.any(sig["di"]):
         inputs.append((Bcols[:, 1], sig["di"]))
-    xg_out, v_state = propagate(A, inputs, rows)
-    xs = {"xg": xg_out, "v": v_state}
+    if np.any(sig["d"]):
+        inputs.append((Bcols[:, 2], sig["d"]))
+    gx, v_state, y_state = propagate(A, inputs, rows)
     out: dict[str, np.ndarray] = {}
-    out["z"] = xs["xg"] + sig["d"]
+    out["z"] = gx + sig["d"]
     out["e"] = r - out["z"] - sig["n"]
-    out["v"] = xs["v"] + Dc * ext
+    out["v"] = v_state + Dc * ext
     out["u"] = out["v"]
     out["up"] = out["v"] + sig["di"]
-    out["y"] = _load_response(loop, out["up"], sig["d"], h)
+    out["y"] = y_state + Df * sig["d"]
     if loop.architecture == "feedforward":
         out["r"] = r
     elif loop.architecture == "inverse_shaper":
