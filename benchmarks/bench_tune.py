@@ -24,8 +24,6 @@ import statistics
 import sys
 import time
 
-import numpy as np
-
 from _harness import machine_info, md_table, print_machine_info, timed
 from posicast.tune import sample_check
 from posicast.tune.seed001 import table1

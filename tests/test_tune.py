@@ -360,6 +360,7 @@ def test_inverse_lumped_shaper_without_strong_stability_is_refused_at_once():
     t0 = time.perf_counter()
     r = tune_pd(CRANE.G, zvd, "inverse_shaper", ms=2.0)
     assert r.empty and "not strongly stable" in r.reason and time.perf_counter() - t0 < 5.0
+    assert not r.region.contains(0.5, 1.0) and r.region.extent() is None and r.region.area() == 0.0
     st = CRANE.loop("inverse_shaper", zvd, C=([0.05, 0.5], [1.0])).stability()
     assert not st.stable and "not strongly stable" in st.reason
     zv = tune_pd(CRANE.G, posicast.design("zv", CRANE.mode), "inverse_shaper", ms=2.0)

@@ -429,11 +429,6 @@ def tune(
     return _with_timings(result, timings)
 
 
-def _finite_abs(vals: Sequence[float]) -> float:
-    f = [abs(x) for x in vals if math.isfinite(x)]
-    return max(f) if f else 1.0
-
-
 def _with_timings(r: TuningResult, timings: dict[str, float]) -> TuningResult:
     object.__setattr__(r, "timings", dict(timings))
     return r

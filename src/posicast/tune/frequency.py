@@ -22,10 +22,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
-from numpy.polynomial import polynomial as P
 
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction
@@ -114,7 +113,6 @@ class _Term:
             z = np.zeros(s.shape, dtype=complex)
             return z, z
         val = np.asarray(self.tf(s), dtype=complex).reshape(s.shape)
-        N = np.asarray(self.tf.num(s)).reshape(s.shape)
         D = np.asarray(self.tf.den(s)).reshape(s.shape)
         dN = np.asarray(self.dnum(s)).reshape(s.shape)
         dD = np.asarray(self.dden(s)).reshape(s.shape)
@@ -199,7 +197,6 @@ class FrequencyData:
             self._factors.append((R, through, c.weight_tf))
         self._terms = {k: _Term(t) for k, t in tfs.items()}
         self._cterms = [{k: _Term(t) for k, t in d.items()} for d in cons_tfs]
-        self._gamma2 = np.array([c.gamma**2 for c in self.constraints])
         self._asym = asym
         self._casym = [{k: Asymptote.of(t) for k, t in d.items()} for d in cons_tfs]
         self.r_min = float(min((1.0 / c.gamma for c in self.constraints if c.kind == "S"), default=0.5))

@@ -1265,6 +1265,8 @@ class Region:
         kx = np.asarray(kx, dtype=float)
         ky = np.asarray(ky, dtype=float)
         kx, ky = np.broadcast_arrays(kx, ky)
+        if self.x.size == 0:  # no line scanned (a loop refused before the scan): nothing is admissible
+            return np.zeros(kx.shape, dtype=bool)
         idx = np.clip(np.searchsorted(self.x, kx), 1, max(self.x.size - 1, 1))
         if self.x.size > 1:
             left = self.x[idx - 1]
