@@ -358,7 +358,7 @@ def seed001_section(report: Report) -> None:
     Designs the 12 PDs of Table 1 three times (eq. 10 as printed; with
     :data:`~posicast.tune.seed001.PAPER_DELAY`; with the derivative filter
     :data:`TF` for simulation), tabulates them against the paper, and draws the
-    regions, Nyquist curves and time responses.  About half a minute.
+    regions, Nyquist curves and time responses.  About 20 s.
 
     Parameters
     ----------
