@@ -132,9 +132,9 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         if args.den is None:
             raise ValueError("--den is required with --num")
         G = TransferFunction.from_poly(_coeffs(args.num, "--num"), _coeffs(args.den, "--den"))
-    if args.delay:
-        if not args.delay > 0:
-            raise ValueError(f"--delay must be >= 0, got {args.delay:g}")
+    if args.delay != 0.0:
+        if not (math.isfinite(args.delay) and args.delay > 0):
+            raise ValueError(f"--delay must be a finite number >= 0 [s], got {args.delay:g}")
         G = G * delay(args.delay)
     if args.omega is not None or args.zeta is not None:
         if args.omega is None or args.zeta is None:

@@ -133,6 +133,12 @@ def sample_check(result: TuningResult, n: int = 2000, seed: int = 0, margin: flo
     Only the ``||S||_inf < Ms`` constraint is checked (the seed 001 case); the
     result must have exactly one unweighted ``'S'`` constraint.
     """
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n must be an integer >= 1, got {n!r}")
+    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin must be a finite number >= 0, got {margin!r}")
+    if not isinstance(result, TuningResult):
+        raise TypeError(f"result must be a TuningResult, got {type(result).__name__}")
     if len(result.constraints) != 1 or result.constraints[0].kind != "S" or result.constraints[0].weight is not None:
         raise ValueError("sample_check handles a single unweighted ||S||inf < Ms constraint")
     region = result.region

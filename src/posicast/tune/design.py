@@ -966,7 +966,9 @@ def tune_pid(
     Examples
     --------
     ``1 / (s + 1)^3`` with ``Kd = 0.5`` fixed: the derivative action buys
-    integral gain at the same robustness (the PI alone reaches ``Ki = 0.461``):
+    integral gain at the same robustness (the PI alone reaches ``Ki = 0.461``).
+    A brute-force scan (Hurwitz test and ``||S||inf`` on a dense grid over
+    ``Kp``, ``Ki``) gives max ``Ki`` 0.8107 and 0.4608:
 
     >>> G = ([1.0], [1.0, 3.0, 3.0, 1.0])
     >>> r = tune_pid(G, ms=1.6, fixed={"kd": 0.5}, derivative_filter=0.01)

@@ -1160,19 +1160,7 @@ class Region:
         cached = self._admissible[i]
         if cached is not None:
             return cached
-        ln = self._lines[i]
-        out = []
-        for lo, hi in _intersect(ln.hinf, np.array([self.y_range])):
-            # split at the D-decomposition breaks
-            inner = ln.breaks[(ln.breaks > lo) & (ln.breaks < hi)]
-            edges = np.concatenate([[lo], inner, [hi]])
-            for a, b in zip(edges[:-1], edges[1:]):
-                if not a < b:
-                    continue
-                y = _interval_point(a, b)
-                j = int(np.searchsorted(ln.breaks, y))
-                if self._segment_label(i, j, y):
-                    out.append((a, b))
+        out = [(a, b) for a, b, j in self.pieces(i) if self._segment_label(i, j, _interval_point(a, b))]
         arr = np.array(out, dtype=float).reshape(-1, 2)
         self._admissible[i] = arr
         return arr
