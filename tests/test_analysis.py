@@ -123,3 +123,154 @@ def test_plots_return_figure_and_axes():
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+# ---------------------------------------------------------------- issue #13: insensitivity with humps
+def _dense_V(S, m, r):
+    """Seed 004 eq. 1-3 on a dense grid, decay folded into each term (independent of posicast)."""
+    w = r[:, None] * m.omega
+    t = S.times[None, :]
+    g = S.amplitudes[None, :] * np.exp(m.zeta * w * (t - S.times[-1]))
+    return np.abs(np.sum(g * np.exp(-1j * w * math.sqrt(1 - m.zeta**2) * t), axis=1))
+
+
+def _brute_band(S, m, vtol, hump_tol, h=2e-5):
+    """The documented definition evaluated by brute force: the component of V <= vtol (1 + hump_tol)
+    around r = 1, then the hull of its points with V <= vtol (and 1); returns (low, high, peak)."""
+    r = np.arange(0.3, 2.5 + h / 2, h)
+    V = _dense_V(S, m, r)
+    i1 = int(np.argmin(np.abs(r - 1.0)))
+    level = vtol * (1 + hump_tol) + vtol * 1e-9
+    if V[i1] > level:
+        return 1.0, 1.0, V[i1]
+    j, k = i1, i1
+    while V[j - 1] <= level:
+        j -= 1
+    while V[k + 1] <= level:
+        k += 1
+    ok = np.flatnonzero(V[j: k + 1] <= vtol * (1 + 1e-9)) + j
+    lo, hi = min(r[ok[0]], 1.0), max(r[ok[-1]], 1.0)
+    inside = (r >= lo) & (r <= hi)
+    return lo, hi, V[inside].max()
+
+
+@pytest.mark.parametrize("method, zeta", [("fit", 0.05), ("singhose", 0.05), ("exact", 0.05),
+                                          ("fit", 0.14), ("singhose", 0.14), ("exact", 0.14)])
+def test_insensitivity_bridges_a_slight_hump_brute_force(method, zeta):
+    """Issue #13: at zeta = 0.05, vtol = 0.05 the strict band gave 0.0 (fit) and 0.218 (singhose) for a
+    0.7 % / 0.014 % overshoot of the EI hump.  The documented definition is checked against a dense
+    brute-force evaluation of V (step 2e-5)."""
+    m = Mode(8.98, zeta)
+    S = design("ei", m, vtol=0.05, method=method)
+    ins = insensitivity(S, 0.05)
+    lo, hi, peak = _brute_band(S, m, 0.05, ins.hump_tol)
+    assert abs(ins.low - lo) < 2.5e-5 and abs(ins.high - hi) < 2.5e-5
+    assert ins.peak >= peak - 1e-12 and ins.peak - peak < 1e-9
+    assert abs(ins.excess - max(0.0, peak - 0.05)) < 1e-9
+    assert ins.bridged == (peak > 0.05 * (1 + 1e-9))
+    assert ins.width > 0.4  # no collapse
+    if method != "exact":
+        assert ins.bridged and 0 < ins.excess < 0.05 * ins.hump_tol
+    else:  # the exact EI's hump touches vtol at the model: nothing to bridge
+        assert not ins.bridged and abs(ins.peak_at - 1.0) < 1e-4
+    # the strict definition (hump_tol = 0) is still available, and brute force agrees with it too
+    strict = insensitivity(S, 0.05, hump_tol=0.0)
+    lo0, hi0, _ = _brute_band(S, m, 0.05, 0.0)
+    assert abs(strict.low - lo0) < 2.5e-5 and abs(strict.high - hi0) < 2.5e-5
+
+
+def test_insensitivity_of_undamped_ei_is_analytic():
+    # seed 002 eq. 3: V(r) = |(1 - V)/2 + (1 + V)/2 cos(pi r)|; the band ends where it equals V:
+    # cos(pi r) = (3V - 1)/(1 + V), and the hump at r = 1 touches V exactly
+    for vt in (0.02, 0.05, 0.15):
+        ins = insensitivity(design("ei", Mode(3.0, 0.0), vtol=vt), vt)
+        ref = 2 - 2 * math.acos((3 * vt - 1) / (1 + vt)) / math.pi
+        assert abs(ins.width - ref) < 1e-10
+        assert not ins.bridged and abs(ins.peak - vt) < 1e-12
+
+
+@pytest.mark.parametrize("method", ["exact", "singhose", "fit"])
+@pytest.mark.parametrize("zeta", [0.05, 0.14])
+def test_seed004_ei_most_robust_for_every_ei(method, zeta):
+    """Seed 004 (Fig. 8-15, conclusion): EI is more insensitive than ZVD at 5 %, whichever EI."""
+    m = Mode(8.98, zeta)
+    ei_w = insensitivity(design("ei", m, vtol=0.05, method=method), 0.05).width
+    assert ei_w > insensitivity(design("zvd", m), 0.05).width
+    assert ei_w > insensitivity(design("mis_zvd", m, n=2, m=3), 0.05).width
+
+
+# ---------------------------------------------------------------- issue #13: zeta -> 1 and hostile input
+@pytest.mark.parametrize("kind", ["mzv", "zvdk", "mis_zvd", "zv", "dzv"])
+def test_residual_vibration_finite_as_zeta_goes_to_one(kind):
+    m = Mode(10.0, 0.9999)
+    S = design(kind, m)
+    # at the design frequency: zero vibration; elsewhere the independent formula of seed 004 eq. 1-3
+    assert residual_vibration(S, m.omega, m.zeta) < 1e-10
+    if S.is_lumped:
+        for r in (0.5, 0.8, 1.1):  # the reference formula's e^(zeta omega t) stays finite
+            ref = _seed004_V(S.times, S.amplitudes, r * m.omega, m.zeta)
+            assert abs(residual_vibration(S, r * m.omega, m.zeta) - ref) <= 1e-9 * ref
+    # an actual mode even closer to 1: every earlier impulse's vibration has decayed by > e^-700, so V is
+    # the last amplitude's (the analytic limit), not NaN
+    S0 = design(kind, Mode(10.0, 0.1))
+    z = 1 - 1e-12
+    vals = residual_vibration(S0, np.array([1e3, 1e4]), z)
+    if S0.is_lumped:
+        np.testing.assert_allclose(vals, S0.amplitudes[-1], rtol=1e-12)
+    assert np.all(np.isfinite(vals))
+
+
+@pytest.mark.parametrize(
+    "call, exc, match",
+    [
+        (lambda S: residual_vibration(S, "5", 0.1), TypeError, "omega"),
+        (lambda S: residual_vibration(S, 5 + 0j, 0.1), TypeError, "omega .*complex"),
+        (lambda S: residual_vibration(S, [5.0, 1j], 0.1), TypeError, "omega .*complex"),
+        (lambda S: residual_vibration(S, [5.0, np.inf], 0.1), ValueError, "omega"),
+        (lambda S: residual_vibration(S, [], 0.1), ValueError, "omega must not be empty"),
+        (lambda S: residual_vibration(S, [True], 0.1), TypeError, "omega"),
+        (lambda S: residual_vibration(S, 1e300, 0.1), ValueError, r"omega must be <= .*phases"),
+        (lambda S: residual_vibration(design("zvdk", Mode(10.0, 0.1), k=300), np.ones(10**6), 0.1), ValueError,
+         r"3\.02e\+08 exponentials .*pass fewer omega"),
+        (lambda S: residual_vibration(S, 1.0, "0.1"), TypeError, "zeta"),
+        (lambda S: residual_vibration(S, 1.0, 0.1, reference=None), TypeError, "reference"),
+        (lambda S: residual_vibration(S, 1e6, 0.99999, reference="unshaped"), ValueError, "float range"),
+        (lambda S: sensitivity_curve(S, ratio=[]), ValueError, "ratio"),
+        (lambda S: sensitivity_curve(S, ratio="1"), TypeError, "ratio"),
+        (lambda S: sensitivity_curve(S, ratio=[1e300]), ValueError, "ratio must be <="),
+        (lambda S: sensitivity_curve(S, mode=(1.0, 0.1)), TypeError, "mode"),
+        (lambda S: insensitivity(S, 0.05, max_ratio=1e300), ValueError, "max_ratio"),
+        (lambda S: insensitivity(S, 0.05, max_ratio=1e6), ValueError, "lower max_ratio"),
+        (lambda S: insensitivity(S, 0.05, hump_tol=-0.1), ValueError, "hump_tol"),
+        (lambda S: insensitivity(S, np.nan), ValueError, "vtol"),
+        (lambda S: pc.impulse_plot(None), TypeError, "shaper"),
+        (lambda S: pc.impulse_plot(S, n_points=1), ValueError, "n_points"),
+        (lambda S: pc.impulse_plot(S, n_points=10**9), ValueError, "n_points"),
+        (lambda S: pc.impulse_plot(S, n_points=2.5), TypeError, "n_points"),
+        (lambda S: pc.impulse_plot(S, ax="ax"), TypeError, "ax"),
+        (lambda S: pc.sensitivity_plot(None), TypeError, "items"),
+        (lambda S: pc.sensitivity_plot([S], labels="ab"), TypeError, "labels"),
+        (lambda S: pc.sensitivity_plot([S], vtol=np.nan), ValueError, "vtol"),
+    ],
+)
+def test_hostile_input_to_analysis(call, exc, match):
+    import matplotlib.pyplot as plt
+
+    with pytest.raises(exc, match=match):
+        call(design("zvd", Mode(10.0, 0.1)))
+    plt.close("all")
+
+
+def test_impulse_plot_uses_n_points():
+    import matplotlib.pyplot as plt
+
+    m = Mode(5.49, 0.008)
+    _, ax = pc.impulse_plot(design("dtzv", m), n_points=37)
+    assert len(ax.lines[-1].get_xdata()) == 37
+    # the notch's IIR part is drawn as its impulse response: 2 (zeta - 1) omega (1 - omega t) e^(-omega t)
+    _, ax = pc.impulse_plot(design("notch", m), n_points=64)
+    t, y = ax.lines[-1].get_xdata(), ax.lines[-1].get_ydata()
+    assert len(t) == 64
+    ref = 2 * (m.zeta - 1) * m.omega * (1 - m.omega * t) * np.exp(-m.omega * t)
+    np.testing.assert_allclose(y, ref, atol=1e-6 * m.omega)
+    plt.close("all")

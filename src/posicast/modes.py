@@ -7,7 +7,12 @@ from dataclasses import dataclass
 
 from . import _validate as v
 
-__all__ = ["Mode"]
+__all__ = ["Mode", "OMEGA_MIN", "OMEGA_MAX"]
+
+#: Range of natural frequencies (rad/s) a Mode accepts: far inside the float range, so that
+#: periods, decay rates and their products with any delay of a shaper stay finite.
+OMEGA_MIN = 1e-100
+OMEGA_MAX = 1e100
 
 
 @dataclass(frozen=True)
@@ -17,9 +22,17 @@ class Mode:
     Parameters
     ----------
     omega : float
-        Natural (undamped) frequency in rad/s, finite and > 0.
+        Natural (undamped) frequency in rad/s, in ``[1e-100, 1e100]``
+        (:data:`OMEGA_MIN`, :data:`OMEGA_MAX`).
     zeta : float
         Damping ratio, ``0 <= zeta < 1``.
+
+    Raises
+    ------
+    TypeError
+        A parameter that is not a real number (str, bool, complex, None).
+    ValueError
+        A parameter outside its range (NaN, inf, 0, negative, ``zeta >= 1``).
 
     Examples
     --------
@@ -28,22 +41,27 @@ class Mode:
     5.4898
     >>> Mode.from_hz(28.0, 0.05).omega == 2 * math.pi * 28.0
     True
+    >>> Mode(0.0, 0.1)
+    Traceback (most recent call last):
+    ...
+    ValueError: omega must be in [1e-100, 1e+100], got 0
     """
 
     omega: float
     zeta: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "omega", v.positive(self.omega, "omega"))
-        z = v.real(self.zeta, "zeta")
+        object.__setattr__(self, "omega", v.real_in_range(self.omega, "omega", OMEGA_MIN, OMEGA_MAX))
+        z = v.finite_real(self.zeta, "zeta")
         if not 0.0 <= z < 1.0:
             raise ValueError(f"zeta must be in [0, 1) (an underdamped mode), got {z:g}")
-        object.__setattr__(self, "zeta", z)
+        object.__setattr__(self, "zeta", z + 0.0)  # -0.0 -> 0.0
 
     @classmethod
     def from_hz(cls, freq_hz: float, zeta: float) -> Mode:
-        """Mode from its natural frequency in Hz."""
-        return cls(2.0 * math.pi * v.positive(freq_hz, "freq_hz"), zeta)
+        """Mode from its natural frequency in Hz (``[1e-100, 1e100] / (2 pi)``)."""
+        f = v.real_in_range(freq_hz, "freq_hz", OMEGA_MIN / (2.0 * math.pi), OMEGA_MAX / (2.0 * math.pi))
+        return cls(2.0 * math.pi * f, zeta)
 
     @property
     def freq_hz(self) -> float:
@@ -70,5 +88,7 @@ class Mode:
         return complex(-self.decay, self.damped_omega)
 
     def scaled(self, ratio: float) -> Mode:
-        """The same damping at ``ratio`` times the frequency."""
-        return Mode(self.omega * ratio, self.zeta)
+        """The same damping at ``ratio`` times the frequency (``ratio > 0``; the result must be a valid Mode)."""
+        r = v.real_in_range(ratio, "ratio", OMEGA_MIN / self.omega, OMEGA_MAX / self.omega,
+                            hint=" (omega * ratio must stay in [1e-100, 1e100])")
+        return Mode(self.omega * r, self.zeta)

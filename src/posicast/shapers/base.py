@@ -21,13 +21,29 @@ from typing import Any
 
 import numpy as np
 
+from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction, finite_complex
 from ..modes import Mode
 
-__all__ = ["Kernel", "DistributedPart", "Shaper", "KERNEL_SHAPES"]
+__all__ = ["Kernel", "DistributedPart", "Shaper", "KERNEL_SHAPES", "MAX_IMPULSES", "DECAY_MAX", "TIME_RESOLUTION"]
 
 KERNEL_SHAPES = ("uniform", "triangular", "cosine", "decreasing")
+#: Other names accepted for a kernel shape (normalised on construction).
+KERNEL_ALIASES = {"rectangular": "uniform", "equal": "uniform", "trigonometric": "cosine"}
+
+#: Most lumped impulses a Shaper may hold (a few MB; every evaluation is chunked).
+MAX_IMPULSES = 100_000
+#: Largest decay ``zeta * omega * duration`` a designed shaper may span: its amplitudes then
+#: stay above ``e^-600 ~ 1e-261`` of the first and ``S(p)`` stays finite.
+DECAY_MAX = 600.0
+#: Shortest time interval of a designed shaper, relative to ``max(1 s, duration)``.  posicast.core
+#: merges delays closer than ``1e-12 max(1 s, delay)``; this keeps a margin of 1000 above that.
+TIME_RESOLUTION = 1e-9
+#: Most complex exponentials one evaluation chunk holds (memory ~ 16 bytes each).
+_CHUNK = 1 << 21
+#: Lengths of a kernel: far inside the float range, so that T**3 stays a normal number.
+_T_MIN, _T_MAX = 1e-100, 1e100
 
 
 @dataclass(frozen=True)
@@ -43,10 +59,13 @@ class Kernel:
     T: float
 
     def __post_init__(self) -> None:
-        if self.shape not in KERNEL_SHAPES:
+        if not isinstance(self.shape, str):
+            raise TypeError(f"kernel shape must be a string, one of {KERNEL_SHAPES}; got {type(self.shape).__name__}")
+        shape = KERNEL_ALIASES.get(self.shape.strip().lower(), self.shape.strip().lower())
+        if shape not in KERNEL_SHAPES:
             raise ValueError(f"kernel shape must be one of {KERNEL_SHAPES}, got {self.shape!r}")
-        if not (math.isfinite(self.T) and self.T > 0):
-            raise ValueError(f"T must be finite and > 0, got {self.T!r}")
+        object.__setattr__(self, "shape", shape)
+        object.__setattr__(self, "T", v.real_in_range(self.T, "T", _T_MIN, _T_MAX))
 
     def transfer(self) -> TransferFunction:
         """Exact Laplace transform (seed 001 eq. 12, G1..G4)."""
@@ -67,8 +86,8 @@ class Kernel:
         return TransferFunction(num, den)
 
     def density(self, t: Any) -> np.ndarray:
-        """Density at times ``t`` (zero outside ``[0, T]``)."""
-        t = np.asarray(t, dtype=float)
+        """Density at times ``t`` (zero outside ``[0, T]``; ``t`` finite reals)."""
+        t = v.strict_real_array(t, "t", allow_empty=True)
         T = self.T
         inside = (t >= 0) & (t <= T)
         if self.shape == "uniform":
@@ -91,12 +110,17 @@ class DistributedPart:
     kernels: tuple[Kernel, ...]
 
     def __post_init__(self) -> None:
-        if not math.isfinite(self.weight):
-            raise ValueError(f"weight must be finite, got {self.weight!r}")
-        if not (math.isfinite(self.delay) and self.delay >= 0):
-            raise ValueError(f"delay must be finite and >= 0, got {self.delay!r}")
-        if not self.kernels or not all(isinstance(k, Kernel) for k in self.kernels):
+        w = v.finite_real(self.weight, "weight")
+        object.__setattr__(self, "weight", w + 0.0)
+        object.__setattr__(self, "delay", v.real_in_range(self.delay, "delay", 0.0, _T_MAX) + 0.0)
+        kernels = self.kernels
+        if isinstance(kernels, Kernel):
+            kernels = (kernels,)
+        if not isinstance(kernels, (tuple, list)) or not kernels or not all(isinstance(k, Kernel) for k in kernels):
             raise TypeError("kernels must be a non-empty tuple of Kernel")
+        object.__setattr__(self, "kernels", tuple(kernels))
+        if self.delay + self.length > _T_MAX:
+            raise ValueError(f"delay + kernel lengths must be <= {_T_MAX:g}, got {self.delay + self.length:g}")
 
     @property
     def length(self) -> float:
@@ -115,8 +139,13 @@ class DistributedPart:
         return tf
 
     def density(self, t: Any, resolution: int = 4000) -> np.ndarray:
-        """Density at times ``t``; exact for one kernel, numerical convolution for several."""
-        t = np.asarray(t, dtype=float)
+        """Density at times ``t``; exact for one kernel, numerical convolution for several.
+
+        ``resolution`` (integer in [2, 20000]) is the grid of the numerical convolution.
+        """
+        t = v.strict_real_array(t, "t", allow_empty=True)
+        resolution = v.integer_in_range(resolution, "resolution", 2, 20000,
+                                        " (each extra kernel costs resolution**2 operations)")
         local = t - self.delay
         if len(self.kernels) == 1:
             return self.weight * self.kernels[0].density(local)
@@ -160,21 +189,43 @@ class Shaper:
     params: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.times, dtype=float).reshape(-1)
-        a = np.asarray(self.amplitudes, dtype=float).reshape(-1)
+        t = v.strict_real_array(self.times, "times", allow_empty=True)
+        a = v.strict_real_array(self.amplitudes, "amplitudes", allow_empty=True)
+        if t.ndim > 1 or a.ndim > 1:
+            raise ValueError(f"times and amplitudes must be 1-D, got shapes {t.shape} and {a.shape}")
+        t, a = t.reshape(-1), a.reshape(-1)
         if t.shape != a.shape:
-            raise ValueError("times and amplitudes must have the same length")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(a))):
-            raise ValueError("impulse times and amplitudes must be finite")
-        if np.any(t < 0):
-            raise ValueError("impulse times must be >= 0")
+            raise ValueError(f"times and amplitudes must have the same length, got {t.size} and {a.size}")
+        if t.size > MAX_IMPULSES:
+            raise ValueError(f"times has {t.size} impulses; at most {MAX_IMPULSES} are supported")
+        if np.any(t < 0) or np.any(t > _T_MAX):
+            raise ValueError(f"impulse times must be in [0, {_T_MAX:g}]")
+        dist = self.distributed
+        if isinstance(dist, DistributedPart):
+            dist = (dist,)
+        if not isinstance(dist, (tuple, list)) or not all(isinstance(p, DistributedPart) for p in dist):
+            raise TypeError("distributed must be a tuple of DistributedPart")
+        if self.continuous is not None and not isinstance(self.continuous, TransferFunction):
+            raise TypeError(f"continuous must be a posicast TransferFunction or None, got "
+                            f"{type(self.continuous).__name__}")
+        if not isinstance(self.name, str):
+            raise TypeError(f"name must be a string, got {type(self.name).__name__}")
+        modes = self.modes
+        if isinstance(modes, Mode):
+            modes = (modes,)
+        if not isinstance(modes, (tuple, list)) or not all(isinstance(m, Mode) for m in modes):
+            raise TypeError("modes must be a tuple of posicast Mode")
+        object.__setattr__(self, "modes", tuple(modes))
+        if not isinstance(self.params, dict):
+            raise TypeError(f"params must be a dict, got {type(self.params).__name__}")
+        t = t + 0.0  # -0.0 -> 0.0
         order = np.argsort(t, kind="stable")
         t, a = _merge_impulses(t[order], a[order])
         t.flags.writeable = False
         a.flags.writeable = False
         object.__setattr__(self, "times", t)
         object.__setattr__(self, "amplitudes", a)
-        object.__setattr__(self, "distributed", tuple(self.distributed))
+        object.__setattr__(self, "distributed", tuple(dist))
         object.__setattr__(self, "_transfer", None)
 
     # ------------------------------------------------------------------ descriptions
@@ -244,16 +295,39 @@ class Shaper:
         return self.transfer.den
 
     def __call__(self, s: Any) -> Any:
-        """Evaluate ``S(s)`` at complex ``s`` (vectorised)."""
+        """Evaluate ``S(s)`` at complex ``s`` (vectorised).
+
+        Raises ValueError where the value overflows the float range
+        (``|e^{-s t}|`` beyond ``1e308``, i.e. ``Re(s) < -709 / duration`` about);
+        an IIR part gives ``inf`` at its poles.
+        """
         if self.is_lumped:  # fast exact path: sum of exponentials
             s_arr = finite_complex(s)
-            out = np.exp(-np.multiply.outer(s_arr, self.times)) @ self.amplitudes
-            return out if np.ndim(s) else complex(out)
-        return self.transfer(s)
+            out = lumped_sum(self.times, self.amplitudes, s_arr.reshape(-1)).reshape(s_arr.shape)
+        else:
+            out = np.asarray(self.transfer(s), dtype=complex)
+        bad = np.isnan(out) if self.continuous is not None else ~np.isfinite(out)
+        if np.any(bad):
+            s_bad = complex(np.asarray(s, dtype=complex).reshape(-1)[int(np.flatnonzero(bad.reshape(-1))[0])])
+            span = self.span
+            raise ValueError(
+                f"S(s) of {self.name!r} overflows the float range at s = {s_bad:.6g} (its terms e^(-s t) reach "
+                f"e^{-s_bad.real * span:.4g}); s must have Re(s) >= about {-700.0 / max(span, 1e-300):.4g}")
+        return out if np.ndim(s) else complex(out)
+
+    @property
+    def span(self) -> float:
+        """Longest delay in the exact transfer function (the duration, or for an IIR shaper the
+        longest delay of its parts; 0 for a delay-free shaper)."""
+        ends = [float(self.times[-1])] if self.times.size else [0.0]
+        ends += [p.end for p in self.distributed]
+        if self.continuous is not None:
+            ends.append(float(self.continuous.max_delay))
+        return max(ends)
 
     def density(self, t: Any) -> np.ndarray:
         """Density of the distributed parts at times ``t`` (impulses are not included)."""
-        t = np.asarray(t, dtype=float)
+        t = v.strict_real_array(t, "t", allow_empty=True)
         out = np.zeros(t.shape)
         for p in self.distributed:
             out = out + p.density(t)
@@ -264,6 +338,10 @@ class Shaper:
         """Convolution of two shapers (a shaper for both modes)."""
         if not isinstance(other, Shaper):
             return NotImplemented
+        n = self.n_impulses * other.n_impulses
+        if n > MAX_IMPULSES:
+            raise ValueError(f"the convolution of {self.name!r} ({self.n_impulses} impulses) and {other.name!r} "
+                             f"({other.n_impulses}) would have {n} impulses; at most {MAX_IMPULSES} are supported")
         ta = np.add.outer(self.times, other.times).ravel()
         aa = np.multiply.outer(self.amplitudes, other.amplitudes).ravel()
         parts: list[DistributedPart] = []
@@ -320,6 +398,38 @@ class Shaper:
         return f"Shaper({self.name!r}, {self.n_impulses} impulses{parts}{iir}, duration={self.duration:.6g})"
 
 
+def lumped_sum(times: np.ndarray, amps: np.ndarray, s: np.ndarray, shift: np.ndarray | None = None) -> np.ndarray:
+    """``e^{shift} sum_i A_i e^{-s t_i}`` for 1-D complex ``s``, in chunks of bounded memory.
+
+    Impulses of zero amplitude are skipped (``0 * e^{x}`` is 0 for every finite ``x``).  Where
+    the largest exponent exceeds 700 the sum is scaled by it first, so the result overflows
+    only when the value itself is beyond the float range (then it is ``inf``).
+    """
+    keep = amps != 0
+    t, a = times[keep], amps[keep]
+    out = np.zeros(s.shape, dtype=complex)
+    if t.size == 0 or s.size == 0:
+        return out
+    step = max(1, _CHUNK // t.size)
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(0, s.size, step):
+            e = -np.multiply.outer(s[i: i + step], t)
+            if shift is not None:
+                e += shift[i: i + step, None]
+            c = np.max(e.real, axis=1)
+            big = c > 700.0
+            if not np.any(big):
+                out[i: i + step] = np.exp(e) @ a
+                continue
+            c = np.where(big, c, 0.0)
+            val = np.exp(e - c[:, None]) @ a
+            mag = np.abs(val)
+            logm = np.log(np.where(mag > 0, mag, 1.0)) + c
+            unit = np.where(mag > 0, val / np.where(mag > 0, mag, 1.0), 0.0)
+            out[i: i + step] = np.where(logm > 709.78, complex(np.inf), unit * np.exp(np.minimum(logm, 709.78)))
+    return out
+
+
 def _merge_impulses(t: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Merge impulses at (numerically) equal times."""
     if t.size == 0:
@@ -334,3 +444,44 @@ def _merge_impulses(t: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarra
             out_t.append(ti)
             out_a.append(ai)
     return np.array(out_t), np.array(out_a)
+
+
+def check_mode(mode: Any, name: str = "mode") -> Mode:
+    """``mode`` if it is a :class:`Mode`, else TypeError."""
+    if not isinstance(mode, Mode):
+        raise TypeError(f"{name} must be a posicast Mode, got {type(mode).__name__}")
+    return mode
+
+
+def sigma_of(zeta: float) -> float:
+    """``zeta / sqrt(1 - zeta^2)``: decay per radian of the damped oscillation."""
+    return zeta / math.sqrt((1.0 - zeta) * (1.0 + zeta))
+
+
+def check_decay(mode: Mode, periods: float, what: str) -> None:
+    """Refuse a design whose duration (``periods`` damped periods) spans a decay beyond :data:`DECAY_MAX`.
+
+    The decay over the shaper is ``zeta omega t_end = 2 pi sigma periods``; above ``e^600`` the
+    last amplitudes fall below ``1e-261`` of the first (they underflow as ``zeta -> 1``) and
+    ``S(p)`` overflows, so the zero cannot be placed in double precision.
+    """
+    D = 2.0 * math.pi * sigma_of(mode.zeta) * periods
+    if D > DECAY_MAX:
+        s_max = DECAY_MAX / (2.0 * math.pi * periods)
+        z_max = s_max / math.sqrt(1.0 + s_max * s_max)
+        z_shown = math.floor(z_max * 1e6) / 1e6
+        raise ValueError(
+            f"zeta={mode.zeta:.10g} is too close to 1 for {what}: over its {periods:.4g} damped periods the mode "
+            f"decays by e^-{D:.4g} (DECAY_MAX = {DECAY_MAX:g}: its amplitudes would fall below 1e-261 of the first, "
+            f"beyond double precision); zeta must be <= {z_shown:.6f} for it")
+
+
+def check_resolution(shortest: float, duration: float, what: str) -> None:
+    """Refuse a design whose shortest time interval is below ``TIME_RESOLUTION * max(1 s, duration)``."""
+    floor = TIME_RESOLUTION * max(1.0, duration)
+    if not shortest >= floor:
+        raise ValueError(
+            f"{what}: its shortest time interval {shortest:.4g} s is below {floor:.4g} s = {TIME_RESOLUTION:g} x "
+            f"max(1 s, duration {duration:.4g} s), the delay resolution posicast keeps (posicast.core merges delays "
+            "closer than 1e-12 x max(1 s, delay)); for a fast mode give omega in rad/ms or rad/us (times then "
+            "come out in ms or us), for a long kernel choose a shorter T")

@@ -11,8 +11,9 @@ import numpy as np
 from .. import _validate as v
 from ..modes import Mode
 from . import lumped
-from .base import DistributedPart, Kernel, Shaper
-from .distributed import distributed_zv_part, dzv_parameters, notch_continuous
+from .base import _T_MAX, DistributedPart, Kernel, Shaper, check_resolution
+from .distributed import _dzv as _dzv_weights
+from .distributed import distributed_zv_part, notch_continuous
 from .ei import ei_exact, ei_fit, ei_multi_hump
 
 __all__ = ["design", "KINDS", "ZERO_VIBRATION_KINDS"]
@@ -26,7 +27,28 @@ class _Kind:
     zero_vibration: bool
 
 
+def _shortest_interval(times: np.ndarray) -> float:
+    """Shortest spacing of designed impulse times (times equal to rounding, as MIS-ZVD's coincident
+    ones, are one impulse); ``inf`` for fewer than two distinct times."""
+    t = np.sort(np.asarray(times, dtype=float))
+    if t.size < 2:
+        return math.inf
+    d = np.diff(t)
+    d = d[d > 1e-12 * t[-1]]
+    return float(d.min()) if d.size else math.inf
+
+
+def _check_duration(duration: float, mode: Mode, what: str) -> None:
+    if not duration <= _T_MAX:
+        raise ValueError(f"omega={mode.omega:g} rad/s is too slow for seconds as the time unit: {what} would last "
+                         f"{duration:.4g} s, more than {_T_MAX:g} s; give omega in rad/ks or rad/Ms")
+
+
 def _lumped(name: str, mode: Mode, times: np.ndarray, amps: np.ndarray, **params: Any) -> Shaper:
+    _check_duration(float(np.max(times)), mode, f"a {name} shaper")
+    # before the Shaper merges (numerically) equal times: a mode too fast for the time unit
+    # would otherwise lose impulses silently
+    check_resolution(_shortest_interval(times), float(np.max(times)), f"a {name} shaper for omega={mode.omega:g} rad/s")
     return Shaper(times, amps, name=name, modes=(mode,), params=params)
 
 
@@ -38,8 +60,11 @@ def _zvdk(mode: Mode, k: int) -> Shaper:
 
 def _ei(mode: Mode, vtol: float, method: str) -> Shaper:
     # "exact": hump exactly at the model frequency with height vtol (the standard EI meaning);
+    #          the same shaper as ei_exact(mode, vtol), whose default definition is "hump";
     # "singhose": exact solution of the constraint set Singhose's fit approximates (t3 = T_d);
     # "fit": Singhose's published damped curve fit (seed 004 eq. 8, corrected).
+    if not isinstance(method, str):
+        raise TypeError(f"method must be 'exact', 'singhose' or 'fit', got {type(method).__name__}")
     if method == "exact":
         t, a = ei_exact(mode, vtol, definition="hump")
     elif method == "singhose":
@@ -52,9 +77,11 @@ def _ei(mode: Mode, vtol: float, method: str) -> Shaper:
 
 
 def _dzv(mode: Mode) -> Shaper:
-    B, theta = dzv_parameters(mode)
+    _check_duration(mode.damped_period, mode, "a dzv shaper")
+    B, w, theta = _dzv_weights(mode)
+    check_resolution(theta, theta, f"a dzv shaper for omega={mode.omega:g} rad/s")
     return Shaper(
-        [0.0], [B], (DistributedPart(1.0 - B, 0.0, (Kernel("uniform", theta),)),),
+        [0.0], [B], (DistributedPart(w, 0.0, (Kernel("uniform", theta),)),),
         name="dzv", modes=(mode,), params={"B": B, "theta": theta},
     )
 
@@ -62,7 +89,12 @@ def _dzv(mode: Mode) -> Shaper:
 def _dist(shape: str, name: str) -> Callable[..., Shaper]:
     def build(mode: Mode, T: float | None) -> Shaper:
         T = math.pi / mode.omega if T is None else T
+        what = f"a {name} shaper with T={T:g} s for omega={mode.omega:g} rad/s"
+        _check_duration(T + mode.damped_period, mode, what)
+        check_resolution(T, T + mode.damped_period, what)
         A, part, tau = distributed_zv_part(mode, shape, T)
+        if tau > 0:
+            check_resolution(tau, part.end, what)
         return Shaper([0.0], [A], (part,), name=name, modes=(mode,), params={"A": A, "tau": tau, "T": T})
 
     return build
@@ -110,9 +142,10 @@ ZERO_VIBRATION_KINDS = tuple(k for k, d in KINDS.items() if d.zero_vibration)
 def _as_mode(mode: Any) -> Mode:
     if isinstance(mode, Mode):
         return mode
-    if isinstance(mode, (tuple, list)) and len(mode) == 2:
+    if isinstance(mode, (tuple, list, np.ndarray)) and len(mode) == 2:
         return Mode(mode[0], mode[1])
-    raise TypeError(f"mode must be a posicast.Mode or an (omega, zeta) pair, got {type(mode).__name__}")
+    raise TypeError(f"mode must be a posicast.Mode or an (omega, zeta) pair, got {type(mode).__name__}"
+                    + (f" of length {len(mode)}" if isinstance(mode, (tuple, list, np.ndarray)) else ""))
 
 
 def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper:
@@ -127,11 +160,14 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
         The mode to cancel.
     **params
         ``k`` (zvdk, integer >= 0, default 1); ``vtol`` (ei/ei2/ei3, in (0, 1),
-        default 0.05); ``method`` (ei: ``"exact"`` (hump at the model), ``"singhose"``
-        (t3 = T_d) or ``"fit"``); ``n`` (mis_zv,
+        default 0.05); ``method`` (ei: ``"exact"`` (hump of height vtol exactly at the
+        model frequency: the shaper ``ei_exact(mode, vtol)`` returns), ``"singhose"``
+        (t3 = T_d, ``ei_exact(..., definition="singhose")``) or ``"fit"``); ``n`` (mis_zv,
         integer >= 2, default 3); ``n``, ``m`` (mis_zvd, integers >= 2, default
         2 and 3); ``T`` (dezv/dtzv/dczv/dtazv, kernel length > 0, default
-        ``pi / omega``).
+        ``pi / omega``).  Impulse counts are limited to
+        :data:`~posicast.shapers.base.MAX_IMPULSES` (``k <= 99998``, ``n <= 100000``,
+        ``n * m <= 100000``); the EI solvers need ``vtol >= 1e-6``.
 
     Returns
     -------
@@ -140,7 +176,12 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     Raises
     ------
     ValueError
-        Unknown ``kind`` or a parameter out of range (the message names it).
+        Unknown ``kind`` or a parameter out of range (the message names it and
+        gives the range).  Also when the shaper cannot be represented in double
+        precision: ``zeta`` so close to 1 that the mode decays by more than
+        ``e^600`` over the shaper (the message gives the largest ``zeta`` for
+        the kind), or a time interval shorter than ``1e-9 x max(1 s, duration)``
+        (a mode too fast for seconds as the time unit, or an extreme ``T``).
     TypeError
         A parameter the kind does not take, or of the wrong type.
 
@@ -171,7 +212,7 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     if "m" in args:
         args["m2"] = v.integer(args.pop("m"), "m", 2)
     if "vtol" in args:
-        args["vtol"] = v.in_open_interval(args["vtol"], "vtol", 0.0, 1.0)
+        args["vtol"] = v.real_in_range(args["vtol"], "vtol", 0.0, 1.0, lo_open=True, hi_open=True)
     if "T" in args and args["T"] is not None:
-        args["T"] = v.positive(args["T"], "T")
+        args["T"] = v.positive(v.finite_real(args["T"], "T"), "T")
     return spec.build(m, **args)

@@ -28,7 +28,8 @@ complex-step Jacobian, falling back on ``scipy.optimize.root`` (MINPACK
 ``hybrj``), started from a pseudo-arclength continuation of the solution curve
 in ``zeta`` from the undamped closed form; residuals < 1e-12):
 
-* **EI** (:func:`ei_exact`), default ``definition="singhose"``: three impulses
+* **EI**, ``definition="singhose"`` (:func:`ei_exact` with that keyword,
+  ``design("ei", mode, method="singhose")``): three impulses
   with ``t_3 = T_d`` fixed; unknowns ``A_1, A_3, t_2`` (``A_2 = 1 - A_1 - A_3``)
   and two zero frequencies ``omega_lo < omega_m < omega_hi``; equations
   ``V(omega_m) = vtol`` and ``S(p(omega_lo)) = S(p(omega_hi)) = 0`` (5 x 5).
@@ -40,7 +41,9 @@ in ``zeta`` from the undamped closed form; residuals < 1e-12):
   definition (max error 0.0065 T_d against 0.039 T_d).  For ``zeta > 0`` the
   hump of this shaper sits slightly *below* ``omega_m`` and peaks slightly
   above ``vtol`` (``zeta = 0.3``, ``vtol = 0.05``: 0.0505 at 0.976 omega_m).
-* **EI**, ``definition="hump"``: three impulses, ``t_3`` free; the hump is
+* **EI**, ``definition="hump"`` (the *exact EI* of posicast: the default of
+  :func:`ei_exact` and ``design("ei", mode, method="exact")``, which return the
+  same shaper): three impulses, ``t_3`` free; the hump is
   exactly at ``omega_m``: ``V(omega_m) = vtol``, ``dV/domega(omega_m) = 0``,
   two exact zeros, ``sum A = 1`` (7 x 7).  Identical to the above at ``zeta = 0``.
 * **2-hump EI** (:func:`ei_multi_hump`, ``humps=2``): four impulses; an exact
@@ -51,6 +54,11 @@ in ``zeta`` from the undamped closed form; residuals < 1e-12):
   ``omega_m`` (``V = vtol``, ``dV/domega = 0``), two side humps of height
   ``vtol``, four exact zeros between and outside them (15 x 15 with
   ``sum A = 1``).
+
+The exact solvers need ``vtol >= 1e-6`` (:data:`EI_VTOL_MIN`): as ``vtol -> 0``
+the two zeros of every family merge at ``omega_m`` (the shaper tends to ZVD,
+ZVDD, ZVDDD) and the Jacobian of the constraint set becomes singular; below
+about ``1e-8`` the solver fails.  Use ``design("zvd")`` etc. for that limit.
 
 Existence.  Each family exists from ``zeta = 0`` up to a limit that falls as
 ``vtol`` grows (solutions whose outermost zero lies beyond 10 omega_m are not
@@ -82,16 +90,21 @@ from typing import Any, Callable
 import numpy as np
 from scipy.optimize import root
 
+from .. import _validate as _v
 from ..modes import Mode
 
 __all__ = ["ei_fit", "ei_exact", "ei_multi_hump", "ei_fit_report",
-           "EI_FIT_ZETA_MAX", "EI_FIT_VTOL_MAX"]
+           "EI_FIT_ZETA_MAX", "EI_FIT_VTOL_MAX", "EI_VTOL_MIN"]
 
 _TWO_PI = 2.0 * math.pi
 
 #: Validity range of Singhose's damped EI curve fit (Singhose 2009 review).
 EI_FIT_ZETA_MAX = 0.3
 EI_FIT_VTOL_MAX = 0.15
+#: Smallest vtol the exact solvers accept (see the module docstring).
+EI_VTOL_MIN = 1e-6
+#: Most damping ratios one ei_fit_report call solves for (about 10 ms each).
+_REPORT_MAX_ZETAS = 1000
 
 # ---------------------------------------------------------------------------
 # Singhose's damped EI curve fit and the garbled copy printed in seed 004 eq. 8
@@ -175,12 +188,19 @@ def _check_mode(mode: Any) -> Mode:
     return mode
 
 
-def _check_vtol(vtol: Any) -> float:
+def _check_vtol(vtol: Any, solver: bool = False) -> float:
     if isinstance(vtol, (bool, np.bool_)) or not isinstance(vtol, (Real, np.floating, np.integer)):
         raise TypeError(f"vtol must be a real number, got {type(vtol).__name__}")
-    v = float(vtol)
+    try:
+        v = float(vtol)
+    except OverflowError:  # an integer too large for a float
+        v = math.inf
     if not (math.isfinite(v) and 0.0 < v < 1.0):
         raise ValueError(f"vtol must be in (0, 1), got {vtol!r}")
+    if solver and v < EI_VTOL_MIN:
+        raise ValueError(
+            f"vtol must be in [{EI_VTOL_MIN:g}, 1) for the exact EI solvers, got {v:g} (as vtol -> 0 "
+            "the EI zeros merge and the shaper tends to ZVD/ZVDD/ZVDDD: design those instead)")
     return v
 
 
@@ -607,7 +627,16 @@ def _trace(key: str, vtol: float) -> _Trace:
         fj = _aug_fun_jac(prob, vtol)
         tau0 = np.zeros(len(y0))
         tau0[-1] = 1.0
-        tr = _Trace([0.0], [x0], _tangent(fj(y0)[1], tau0), 0.02)
+        try:
+            with np.errstate(all="ignore"):
+                t0 = _tangent(fj(y0)[1], tau0)
+        except np.linalg.LinAlgError:
+            t0 = None
+        if t0 is None or not np.all(np.isfinite(t0)):
+            raise ValueError(f"vtol={vtol:g} is too close to 0 or 1 for the damped {prob.name} shaper: its solution "
+                             "curve is singular at zeta = 0 (the undamped closed form has coinciding zeros or a "
+                             "vanishing impulse); use a vtol further inside (0, 1)")
+        tr = _Trace([0.0], [x0], t0, 0.02)
         _traces[k] = tr
         while len(_traces) > _CACHE_SIZE:
             _traces.popitem(last=False)
@@ -644,7 +673,8 @@ def _solve(key: str, zeta: float, vtol: float) -> np.ndarray:
     if sigma == 0.0:
         x, _ = _solve_at(prob, tr.xs[0], 0.0, vtol)
         if x is None:  # pragma: no cover - the closed form is exact
-            raise RuntimeError(f"{prob.name}: undamped closed form rejected for vtol={vtol:g}")
+            raise ValueError(f"{prob.name}: the undamped closed form is not admissible for vtol={vtol:g}; "
+                             "use a vtol further inside (0, 1)")
         return x
     for _ in range(40):
         sig = np.array(tr.sig)
@@ -658,13 +688,17 @@ def _solve(key: str, zeta: float, vtol: float) -> np.ndarray:
         # refine the segment: a curve point half way along it, then retry
         ya, yb = np.append(tr.xs[i], s0), np.append(tr.xs[i + 1], s1)
         tau = (yb - ya) / np.linalg.norm(yb - ya)
-        with np.errstate(all="ignore"):
-            ym = _correct(_aug_fun_jac(prob, vtol), 0.5 * (ya + yb), tau)
+        try:
+            with np.errstate(all="ignore"):
+                ym = _correct(_aug_fun_jac(prob, vtol), 0.5 * (ya + yb), tau)
+        except np.linalg.LinAlgError:
+            ym = None
         if ym is None:
             break
         tr.sig.insert(i + 1, float(ym[-1]))
         tr.xs.insert(i + 1, ym[:-1].copy())
-    raise RuntimeError(f"{prob.name}: could not solve at zeta={zeta:g}, vtol={vtol:g}")
+    raise ValueError(f"{prob.name}: the solver did not converge at zeta={zeta:g}, vtol={vtol:g} (near the end "
+                     "of the family's range); a smaller zeta or vtol is solvable")
 
 
 def _to_seconds(prob: _Problem, x: np.ndarray, mode: Mode) -> tuple[np.ndarray, np.ndarray]:
@@ -683,8 +717,8 @@ def ei_fit(mode: Mode, vtol: float, *, extrapolate: bool = False) -> tuple[np.nd
     """Singhose's published curve fit of the damped EI shaper.
 
     Seed 004 eq. 8 prints this fit garbled; this is the corrected version
-    (Singhose 2009 review), verified against :func:`ei_exact` (the fit
-    approximates the ``definition="singhose"`` EI with ``t_3 = T_d``)::
+    (Singhose 2009 review), verified against :func:`ei_exact` with
+    ``definition="singhose"`` (the EI with ``t_3 = T_d`` that the fit approximates)::
 
         A1 = 0.24968 + 0.24962 V + 0.80008 z + 1.23328 V z + 0.49599 z^2 + 3.17316 V z^2
         A3 = 0.25149 + 0.21474 V - 0.83249 z + 1.41498 V z + 0.85181 z^2 - 4.90094 V z^2
@@ -729,15 +763,19 @@ def ei_fit(mode: Mode, vtol: float, *, extrapolate: bool = False) -> tuple[np.nd
     return _eval_fit(_SINGHOSE_EI_FIT, mode, vtol)
 
 
-def ei_exact(mode: Mode, vtol: float, *, definition: str = "singhose"
+def ei_exact(mode: Mode, vtol: float, *, definition: str = "hump"
              ) -> tuple[np.ndarray, np.ndarray]:
     """Damped EI shaper solved numerically from its definition.
 
-    ``definition="singhose"`` (default): three impulses, ``t_3 = T_d``,
-    ``V(omega_m) = vtol`` and exact zeros ``S(p(omega_lo)) = S(p(omega_hi)) = 0``
-    with ``omega_lo < omega_m < omega_hi``; this is what Singhose's curve fit
-    (:func:`ei_fit`) approximates.  ``definition="hump"``: ``t_3`` free and in
-    addition ``dV/domega(omega_m) = 0`` (the hump exactly at ``omega_m``).
+    ``definition="hump"`` (default; the same shaper as
+    ``design("ei", mode, vtol=vtol, method="exact")``): three impulses, ``t_3``
+    free, ``V(omega_m) = vtol`` and ``dV/domega(omega_m) = 0`` (the hump of
+    height ``vtol`` exactly at the model frequency), exact zeros
+    ``S(p(omega_lo)) = S(p(omega_hi)) = 0`` with ``omega_lo < omega_m < omega_hi``.
+    ``definition="singhose"`` (``method="singhose"`` in :func:`posicast.design`):
+    ``t_3 = T_d`` fixed instead of ``dV/domega(omega_m) = 0``; this is what
+    Singhose's curve fit (:func:`ei_fit`) approximates, and its hump sits
+    slightly below ``omega_m`` and above ``vtol`` when ``zeta > 0``.
     Both reduce at ``zeta = 0`` to ``A = [(1+V)/4, (1-V)/2, (1+V)/4]``,
     ``t = [0, T/2, T]`` (seed 002 eq. 3).
 
@@ -753,9 +791,9 @@ def ei_exact(mode: Mode, vtol: float, *, definition: str = "singhose"
     mode : Mode
         The modelled mode.
     vtol : float
-        Residual vibration at the modelled frequency, in (0, 1).
-    definition : {"singhose", "hump"}, optional
-        Which EI definition (see above).
+        Residual vibration at the modelled frequency, in ``[1e-6, 1)``.
+    definition : {"hump", "singhose"}, optional
+        Which EI definition (see above); default ``"hump"``.
 
     Returns
     -------
@@ -773,15 +811,18 @@ def ei_exact(mode: Mode, vtol: float, *, definition: str = "singhose"
     >>> t, a = ei_exact(Mode(2 * math.pi, 0.0), 0.05)
     >>> [round(float(v), 6) for v in a], [round(float(v), 6) for v in t]
     ([0.2625, 0.475, 0.2625], [0.0, 0.5, 1.0])
-    >>> t, a = ei_exact(Mode(2 * math.pi, 0.2), 0.05)
+    >>> t, a = ei_exact(Mode(2 * math.pi, 0.2), 0.05, definition="singhose")
     >>> round(float(a[0]), 4), round(float(t[1] / Mode(2 * math.pi, 0.2).damped_period), 4)
     (0.4613, 0.514)
+    >>> t, a = ei_exact(Mode(2 * math.pi, 0.2), 0.05)      # hump at omega_m: t_3 < T_d
+    >>> round(float(t[2] / Mode(2 * math.pi, 0.2).damped_period), 5)
+    0.98872
     """
     _check_mode(mode)
-    vtol = _check_vtol(vtol)
+    vtol = _check_vtol(vtol, solver=True)
     keys = {"singhose": "ei", "hump": "ei_hump"}
-    if definition not in keys:
-        raise ValueError(f"definition must be 'singhose' or 'hump', got {definition!r}")
+    if not isinstance(definition, str) or definition not in keys:
+        raise ValueError(f"definition must be 'hump' or 'singhose', got {definition!r}")
     prob = _PROBLEMS[keys[definition]]
     return _to_seconds(prob, _solve(keys[definition], mode.zeta, vtol), mode)
 
@@ -811,7 +852,7 @@ def ei_multi_hump(mode: Mode, vtol: float, humps: int) -> tuple[np.ndarray, np.n
     mode : Mode
         The modelled mode.
     vtol : float
-        Height of the humps, in (0, 1).
+        Height of the humps, in ``[1e-6, 1)``.
     humps : int
         2 or 3.
 
@@ -836,7 +877,7 @@ def ei_multi_hump(mode: Mode, vtol: float, humps: int) -> tuple[np.ndarray, np.n
     (True, 1.489)
     """
     _check_mode(mode)
-    vtol = _check_vtol(vtol)
+    vtol = _check_vtol(vtol, solver=True)
     key = {2: "2hump", 3: "3hump"}[_check_humps(humps)]
     return _to_seconds(_PROBLEMS[key], _solve(key, mode.zeta, vtol), mode)
 
@@ -847,9 +888,9 @@ def ei_fit_report(vtol: float = 0.05, zetas: Any = None) -> dict[str, np.ndarray
     Parameters
     ----------
     vtol : float, optional
-        Residual vibration tolerance, in (0, 1) (the fit is meant for <= 0.15).
+        Residual vibration tolerance, in ``[1e-6, 1)`` (the fit is meant for <= 0.15).
     zetas : array_like, optional
-        Damping ratios in [0, 1); default ``numpy.linspace(0, 0.3, 31)``.
+        Damping ratios in [0, 1), at most 1000 of them; default ``numpy.linspace(0, 0.3, 31)``.
 
     Returns
     -------
@@ -872,12 +913,15 @@ def ei_fit_report(vtol: float = 0.05, zetas: Any = None) -> dict[str, np.ndarray
     >>> [round(float(v), 4) for v in rep["v_at_model"]]
     [0.0488, 0.0506, 0.048]
     """
-    vtol = _check_vtol(vtol)
+    vtol = _check_vtol(vtol, solver=True)
     if zetas is None:
         zetas = np.linspace(0.0, 0.3, 31)
-    z = np.atleast_1d(np.asarray(zetas, dtype=float))
-    if z.ndim != 1 or not np.all(np.isfinite(z)) or np.any(z < 0) or np.any(z >= 1):
+    z = np.atleast_1d(_v.strict_real_array(zetas, "zetas"))
+    if z.ndim != 1 or np.any(z < 0) or np.any(z >= 1):
         raise ValueError("zetas must be a 1-D array of damping ratios in [0, 1)")
+    if z.size > _REPORT_MAX_ZETAS:
+        raise ValueError(f"zetas has {z.size} entries (one EI solve each, about {0.01 * z.size:.0f} s); "
+                         f"at most {_REPORT_MAX_ZETAS} are accepted: pass fewer zetas")
     da, dt, v_m, v_pk, v_ex = (np.empty(z.size) for _ in range(5))
     for k, zk in enumerate(z):
         m = Mode(1.0, float(zk))

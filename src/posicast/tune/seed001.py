@@ -18,8 +18,13 @@ designed on carried about 11 ms of dead time (e.g. a controller or inverter
 cycle) that eq. 10 does not print.
 
 The shaper parameters are ours: ``A`` matches Table 1 to 3 digits; ``tau`` is
-0.2849 s for DeZV against the printed 0.286 because the paper took
-``T = 0.574 s`` where ``pi / omega = 0.5726 s``.
+0.2847 s for DeZV against the printed 0.286 because the paper tuned its
+shapers to ``omega ~ 5.46-5.47 rad/s`` rather than 5.49: with ``T = pi / omega``
+every printed ``tau`` and ``A`` is reproduced to its digits for
+``5.4551 <= omega <= 5.4711`` (``T = 0.5742-0.5759 s``; the paper's
+"``T = pi / omega = 0.574 s``" fits the low end, ``omega = 5.468-5.471``,
+whereas ``pi / 5.49 = 0.5722 s``).  ``T = 0.574 s`` at
+``omega = 5.49`` would move ``tau`` further away (0.2838 s for DeZV).
 """
 
 from __future__ import annotations
