@@ -411,3 +411,120 @@ def test_unstable_count_agrees_with_the_located_roots():
         assert n == loop.stability().unstable_roots.size
         if expect is not None:
             assert n == expect
+
+
+# ---------------------------------------------------------------------------- issue #13: hard and hostile inputs
+def test_neutral_not_strongly_stable_roots_between_cd_and_hale_abscissa():
+    """Appeltans & Michiels, TDS-CONTROL manual (2023), example 2.6 with tau2 = 2:
+    s - 1/4 + (1/3 - 3 s/4) e^{-s} + (s/2) e^{-2 s}.  C_D = -ln(2)/2 = -0.3466, Hale abscissa
+    0.1616: the rightmost pair -0.17012 +- 0.82383j lies between them, where Hale's bound is
+    infinite.  spectral_abscissa returned C_D and rightmost(h, 2) returned [].  Reference:
+    40-digit mpmath Newton polish of qpmr's roots; independent count by the h'/h integral."""
+    h = QuasiPolynomial([[-0.25, 1.0], [1.0 / 3.0, -0.75], [0.0, 0.5]], [0.0, 1.0, 2.0])
+    z0 = -0.17011804615991857031 + 0.82382686198763387123j
+    ds = difference_spectrum(h)
+    assert not ds.strongly_stable and ds.abscissa < z0.real < ds.hale_abscissa
+    a = spectral_abscissa(h)
+    assert abs(a - z0.real) < 1e-9 and a.error < 1e-9
+    top = rightmost(h, 2)
+    assert top.size == 2 and _match(top, np.array([z0, z0.conjugate()])) < 1e-9
+    rect = (-0.3, 0.5, 0.1, 50.0)  # between the chains (Re -> C_D) and the Hale line: only z0
+    assert round(_integral_count(h, rect)) == 1
+    assert roots(h, rect).count == 1
+    assert not stability(h).stable  # the verdict stays: not strongly stable
+
+
+def test_multiple_dominant_root_gives_abscissa_and_rightmost():
+    """A sixfold dominant root (multiplicity-induced dominancy, Mazanti, Boussaada & Niculescu 2021,
+    n = 3, tau = 1): s^3 + 9 s - 6 + e^{-3} (3 s^2 + 42 s + 159) e^{-s} has s = -3 of multiplicity 6
+    (Q^{(j)}(-3) = 0, j < 6, checked with mpmath).  The search line Re s = -3 went through the
+    cluster and spectral_abscissa/rightmost raised RootFindingError; roots() found it."""
+    e3 = math.exp(-3.0)
+    h = QuasiPolynomial([[-6.0, 9.0, 0.0, 1.0], [159.0 * e3, 42.0 * e3, 3.0 * e3, 0.0]], [0.0, 1.0])
+    a = spectral_abscissa(h)
+    assert abs(a + 3.0) < 1e-9 and 0 < a.error < 0.1
+    top = rightmost(h, 7)
+    assert np.allclose(top[:6], -3.0, atol=1e-9) and top[6].real < -3.5
+    poly = QuasiPolynomial.from_poly(np.poly([-1.0] * 6))  # (s + 1)^6: the line Re s = -1 hit it too
+    assert spectral_abscissa(poly) == -1.0 and np.allclose(rightmost(poly, 6), -1.0)
+
+
+def test_zvd3_high_frequency_clusters_are_certified():
+    """ZVD^3 (= ZV^4) numerator up to 1e4 rad/s: 500 fourfold clusters.  High up the float delays
+    are no longer exactly commensurate and each cluster splits into four roots ~3e-3 apart; one of
+    them was taken for a simple root and the cluster "could not be isolated" (11-14 s, then
+    RootFindingError; qpmr: 2000 roots in 8 s).  Each cluster sits on a ZV zero (seed 000 eq. 3)."""
+    S = posicast.design("zvdk", SEED000_MODE, k=3)
+    t0 = time.perf_counter()
+    r = roots(S.num, (-20.0, 5.0, 0.0, 1e4))
+    assert time.perf_counter() - t0 < 8.0
+    assert r.count == len(r.roots) == 2000
+    assert np.all(r.multiplicities == 4)
+    Z = posicast.design("zv", SEED000_MODE)
+    A0, tau = Z.impulses[1][0], Z.impulses[0][1]
+    k = np.arange(0, 600)
+    ref = -np.log(A0 / (1 - A0)) / tau + 1j * np.pi * (2 * k + 1) / tau
+    ref = ref[ref.imag <= 1e4]
+    assert ref.size == 500 and _match(r.distinct, ref) < 1e-9
+
+
+def test_zvd_cubed_sixfold_clusters_are_certified():
+    """design("zvd") convolved three times (ZV^6): sixfold zeros.  The cluster at 10 rad/s could not be
+    isolated (its points scatter 1e-2 around it, the mean was too far off); high up the clusters are
+    0.04 wide (the phase of exp(-s tau) is rounded to 1e-12) and need a wider certified disk.
+    qpmr: 1500 of the 3000 roots up to 1e4 rad/s, 31 s; posicast: 3000 in about 3 s."""
+    Z = posicast.design("zvd", SEED000_MODE).num
+    r = roots(Z * Z * Z, (-20.0, 5.0, 0.0, 2000.0))
+    assert r.count == len(r.roots) == 600 and np.all(r.multiplicities == 6)
+    zv = roots(posicast.design("zv", SEED000_MODE).num, (-20.0, 5.0, 0.0, 2000.0))
+    assert _match(r.distinct, zv.roots) < 1e-9
+
+
+def test_roots_on_the_imaginary_axis_are_marginal():
+    """s + e^{-s pi/2}: roots +-j exactly.  stability() said stable and spectral_abscissa returned
+    +4e-18 (a rounding sign); now: marginal, abscissa exactly 0 with its certified error."""
+    h = QuasiPolynomial([[0.0, 1.0], [1.0, 0.0]], [0.0, math.pi / 2])
+    st = stability(h)
+    assert not st.stable and st.marginal and "marginal" in st.reason
+    assert np.allclose(np.sort_complex(st.unstable_roots), [-1j, 1j], atol=1e-12)
+    assert 0 < st.axis_error < 1e-12
+    a = spectral_abscissa(h)
+    assert float(a) == 0.0 and a.marginal and 0 < a.error < 1e-12
+    assert not bool(st)
+    # a decided case keeps the old attributes and is not marginal
+    st2 = stability(QuasiPolynomial([[1.0, 1.0], [0.5, 0.0]], [0, 1]))
+    assert st2.stable and not st2.marginal and st2.axis_error == 0.0
+
+
+@pytest.mark.parametrize(
+    "call, exc, word",
+    [
+        (lambda h: roots(h, (-1, 1, 0, 1), max_evaluations=math.inf), ValueError, "max_evaluations"),
+        (lambda h: roots(h, (-1, 1, 0, 1), max_evaluations=np.nan), ValueError, "max_evaluations"),
+        (lambda h: roots(h, (-1, 1, 0, 1), max_evaluations=True), TypeError, "max_evaluations"),
+        (lambda h: roots(h, (-1, 1, 0, 1), timeout=math.inf), ValueError, "timeout"),
+        (lambda h: roots(h, (-1, 1, 0, 1), timeout=1j), TypeError, "timeout"),
+        (lambda h: roots(h, (0, 1j, 0, 1)), TypeError, "region"),
+        (lambda h: roots(h, (True, 2, 0, 1)), TypeError, "region"),
+        (lambda h: roots(h, (1e200, 2e200, 0, 1)), ValueError, "float range"),
+        (lambda h: stability(h, max_evaluations=math.inf), ValueError, "max_evaluations"),
+        (lambda h: unstable_count(h, max_evaluations=math.inf), ValueError, "max_evaluations"),
+        (lambda h: root_bound(h, 1j), TypeError, "alpha"),
+        (lambda h: rightmost(h, True), ValueError, "n must be"),
+        (lambda h: rightmost(h, 1, max_radius=np.nan), ValueError, "max_radius"),
+    ],
+)
+def test_hostile_arguments_are_named_errors(call, exc, word):
+    h = QuasiPolynomial([[1.0, 1.0], [0.5, 0.0]], [0.0, 1.0])
+    with pytest.raises(exc, match=word):
+        call(h)
+
+
+def test_absurd_region_refused_up_front_with_the_estimate():
+    h = QuasiPolynomial([[1.0, 1.0], [0.5, 0.0]], [0.0, 1.0])
+    t0 = time.perf_counter()
+    with pytest.raises(BudgetExceeded, match=r"needs a [0-9.e+]+-point grid"):
+        roots(h, (-1e6, 1e6, -1e6, 1e6), max_evaluations=1e12)
+    with pytest.raises(ValueError, match=r"1e\d+ and leave the float range; keep the region within"):
+        roots(QuasiPolynomial.from_poly([1.0] + [0.0] * 9 + [1.0]), (0.0, 1.0, 1e100, 2e100))
+    assert time.perf_counter() - t0 < 1.0

@@ -3,6 +3,7 @@
 from .rootfinder import BudgetExceeded, RootFindingError, Roots, roots
 from .stability import (
     DifferenceSpectrum,
+    SpectralAbscissa,
     Stability,
     difference_spectrum,
     rightmost,
@@ -21,6 +22,7 @@ __all__ = [
     "difference_spectrum",
     "DifferenceSpectrum",
     "spectral_abscissa",
+    "SpectralAbscissa",
     "rightmost",
     "stability",
     "Stability",

@@ -9,7 +9,11 @@ in ``re_min <= Re s <= re_max``, ``im_min <= Im s <= im_max`` together with a
    ``L`` passes the test ``M L / 2 + e < min(|h(a)|, |h(b)|)``, where ``M`` is a
    rigorous bound of ``|h'|`` on the segment (absolute coefficients, the
    segment's largest ``|s|`` and smallest ``Re s``) and ``e`` bounds the
-   rounding error of the evaluation.  Under that test ``h`` has no zero on the
+   rounding error of the evaluation (including the phase of ``exp(-s tau)``,
+   rounded to ``eps |s| tau``, which dominates at high frequency).  Next to a
+   root, where that bound of ``|h'|`` is too coarse (it ignores the cancellation
+   of ``h`` near a multiple root), ``M`` comes from the Taylor coefficients of
+   ``h`` about the segment's midpoint.  Under that test ``h`` has no zero on the
    segment and its argument changes by less than ``pi`` along it, so the sum
    of the principal increments is exactly ``2 pi`` times the number of roots
    inside.  A segment that cannot pass the test down to a tiny length means a
@@ -22,7 +26,10 @@ in ``re_min <= Re s <= re_max``, ``im_min <= Im s <= im_max`` together with a
 3. **Refinement.**  Vectorised Newton from the flagged cells; converged points
    are merged, clusters (multiple roots) get their multiplicity from a small
    certified count around them and are polished by Newton on
-   ``h^{(m-1)}``.  Every root is returned with its relative residual
+   ``h^{(m-1)}``.  A cluster whose points are too scattered for that (Newton
+   stalls ``(rounding)^(1/m)`` away from an ``m``-fold root) is centred on the
+   root of ``h^{(k)}`` next to it; one member already taken for a simple root is
+   taken back into it.  Every root is returned with its relative residual
    ``|h(r)| / sum_i |p_i(r)| |exp(-r tau_i)|``.
 4. **Reconciliation.**  When the roots found do not add up to the certified
    count, the rectangle is split, each part is counted (certified) and searched
@@ -44,10 +51,22 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.polynomial import polynomial as P
 
+from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction
 
-__all__ = ["roots", "Roots", "RootFindingError", "BudgetExceeded", "as_quasipolynomial", "check_region"]
+__all__ = [
+    "roots",
+    "Roots",
+    "RootFindingError",
+    "BudgetExceeded",
+    "as_quasipolynomial",
+    "check_region",
+    "check_budget",
+    "check_ignore",
+    "check_range",
+    "certified_radius",
+]
 
 _EPS = np.finfo(float).eps
 _TWO_PI = 2.0 * math.pi
@@ -83,20 +102,59 @@ def as_quasipolynomial(h: Any, name: str = "h") -> QuasiPolynomial:
 
 def check_region(region: Any) -> tuple[float, float, float, float]:
     """Validate ``(re_min, re_max, im_min, im_max)``: four finite reals, nonempty."""
-    try:
-        vals = [float(v) for v in region]
-    except (TypeError, ValueError) as exc:
-        raise TypeError("region must be four real numbers (re_min, re_max, im_min, im_max)") from exc
-    if len(vals) != 4:
-        raise ValueError(f"region must have 4 entries (re_min, re_max, im_min, im_max), got {len(vals)}")
-    if not all(math.isfinite(v) for v in vals):
-        raise ValueError(f"region must be finite, got {tuple(vals)}")
+    if isinstance(region, (str, bytes)) or not hasattr(region, "__len__"):
+        raise TypeError("region must be four real numbers (re_min, re_max, im_min, im_max), "
+                        f"got {type(region).__name__}")
+    items = list(region)
+    if len(items) != 4:
+        raise ValueError(f"region must have 4 entries (re_min, re_max, im_min, im_max), got {len(items)}")
+    names = ("re_min", "re_max", "im_min", "im_max")
+    vals = [v.finite_real(x, f"region {n}") for x, n in zip(items, names)]
     a, b, c, d = vals
     if not a < b:
         raise ValueError(f"region: re_min must be < re_max, got re_min={a:g}, re_max={b:g}")
     if not c < d:
         raise ValueError(f"region: im_min must be < im_max, got im_min={c:g}, im_max={d:g}")
     return a, b, c, d
+
+
+def check_budget(max_evaluations: Any, timeout: Any = 1.0) -> tuple[float, float]:
+    """``max_evaluations`` and ``timeout`` as finite positive floats (TypeError/ValueError otherwise)."""
+    m = v.positive(max_evaluations, "max_evaluations")
+    if m < 1:
+        raise ValueError(f"max_evaluations must be >= 1, got {m:g}")
+    return m, v.positive(timeout, "timeout")
+
+
+def check_ignore(ignore: Any) -> np.ndarray:
+    """``ignore`` as a flat array of finite complex points (TypeError/ValueError naming ``ignore``)."""
+    try:
+        arr = v.complex_array(ignore, "ignore")
+    except ValueError:
+        raise ValueError("ignore must contain finite points (no NaN or inf)") from None
+    return np.atleast_1d(arr).ravel()
+
+
+def check_range(q: QuasiPolynomial, rect: tuple[float, float, float, float]) -> None:
+    """Refuse a region where the polynomial terms leave the float range (with the size they reach).
+
+    The exponentials are scaled to modulus <= 1 everywhere, but ``|c_j| |s|^j`` (and the
+    derivative bounds, one power more) must stay far below 1e308.
+    """
+    a, b, c, d = rect
+    R = max(abs(complex(x, y)) for x in (a, b) for y in (c, d))
+    if R <= 1.0:
+        return
+    nz = np.abs(q.coeffs) > 0
+    j = np.nonzero(nz)[1]
+    logmag = float(np.max(np.log10(np.abs(q.coeffs[nz])) + (j + 1) * math.log10(R)))
+    if logmag > 250.0:
+        deg = int(j.max())
+        lim = 10 ** ((250.0 - float(np.max(np.log10(np.abs(q.coeffs[nz]))))) / (deg + 1))
+        raise ValueError(
+            f"region {rect} reaches |s| = {R:.3g}, where the degree-{deg} terms of h grow to about 1e{logmag:.0f} "
+            f"and leave the float range; keep the region within |s| < {lim:.3g}"
+        )
 
 
 # ---------------------------------------------------------------------------- scaled evaluation
@@ -120,6 +178,72 @@ class _Evaluator:
         self.evaluations = 0
         self.budget = budget
         self.deadline = deadline
+        self._taylor_rows: list | None = None  # built on first use (taylor_deriv_bound)
+
+    def _taylor_data(self) -> list:
+        """Per row: the columns of ``pder`` are the coefficients of ``p^{(l)}(s) / l!``, l = 0..d;
+        the (K+1) x (d+1) matrix ``E[k, l] = (-tau)^(k-l) / (k-l)!`` convolves them with the series
+        of ``exp(-tau t)``.  ``K = d + 12``: the tail beyond it is bounded explicitly."""
+        if self._taylor_rows is None:
+            d = self.q.coeffs.shape[1] - 1
+            K = self.taylor_order = d + 12
+            self._inv_fact = np.array([1.0 / math.factorial(j) for j in range(K + 2)])
+            rows = []
+            kk = np.arange(K + 1)[:, None] - np.arange(d + 1)[None, :]
+            kp = np.maximum(kk, 0)
+            for row, tau in zip(self.q.coeffs, self.tau):
+                pder = np.zeros((d + 1, d + 1))
+                cur = np.array(row, dtype=float)
+                for l in range(d + 1):
+                    pder[: cur.size, l] = cur / math.factorial(l)
+                    cur = P.polyder(cur) if cur.size > 1 else np.zeros(1)
+                E = np.where(kk >= 0, (-float(tau)) ** kp * self._inv_fact[kp], 0.0)
+                rows.append((float(tau), pder, np.abs(pder), E, np.abs(E)))
+            self._taylor_rows = rows
+        return self._taylor_rows
+
+    def taylor_deriv_bound(self, c: np.ndarray, rho: np.ndarray, shift: np.ndarray) -> np.ndarray:
+        """Bound of ``|h'(s)| exp(shift)`` on the disks ``|s - c| <= rho`` (needs ``rho tau_max <= 1/2``).
+
+        From the Taylor coefficients ``A_k`` of ``h`` about ``c`` (``sum_k k |A_k| rho^(k-1)``,
+        with their rounding errors, plus an explicit bound of the series' tail).  Unlike
+        :meth:`deriv_bound`, which adds absolute values of the coefficients, this keeps the
+        cancellation of ``h`` near a multiple root: next to a sixfold root at distance ``d``
+        it is about ``6 d^5``, not ``sum |c_j| j R^(j-1)``, so a path can pass much closer.
+        """
+        self._charge(c.size * len(self.tau))
+        rows = self._taylor_data()
+        K = self.taylor_order
+        n = c.size
+        A = np.zeros((K + 1, n), dtype=complex)
+        S = np.zeros((K + 1, n))
+        tail = np.zeros(n)
+        absc = np.abs(c)
+        l = np.arange(rows[0][1].shape[1])[:, None]
+        j0 = K + 1 - l  # the tail: k = l + j > K
+        for tau, pder, apder, E, aE in rows:
+            e0 = np.exp(-c * tau + shift)
+            pl = P.polyval(c, pder) * e0  # (d + 1, n): p^{(l)}(c) / l!, scaled
+            pa = P.polyval(absc, apder) * np.abs(e0)
+            A += E @ pl
+            S += aE @ pa
+            if tau > 0:
+                # rho^(l-1) sum_{j >= j0} (l + j) x^j / j!, x = rho tau <= 1/2: ratio <= 2 x / (j0 + 1)
+                x = rho[None, :] * tau
+                t0 = (l + j0) * x**j0 * self._inv_fact[j0]
+                tail += np.sum(pa * rho[None, :] ** (l - 1) * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
+        k = np.arange(1, K + 1)[:, None]
+        err = self.round_factor(absc + rho) * (1.0 + K) * S[1:]
+        return np.sum(k * (np.abs(A[1:]) + err) * rho[None, :] ** (k - 1), axis=0) + tail
+
+    def round_factor(self, r: np.ndarray | float) -> np.ndarray | float:
+        """Bound of the relative rounding error of a scaled evaluation at ``|s| = r``.
+
+        ``8 eps`` per term (polynomial and exponential), plus the phase: ``s tau`` is rounded
+        to ``eps |s| tau``, which is the relative error of ``exp(-s tau)`` (it dominates at
+        high frequency, e.g. 1e-12 at ``|s| tau = 1e4``).
+        """
+        return _EPS * (8.0 * self.n_terms + 2.0 * np.asarray(r) * self.tau_max)
 
     def _charge(self, n: int) -> None:
         self.evaluations += n
@@ -198,12 +322,14 @@ def _winding(ev: _Evaluator, corners: Sequence[complex], step: float, min_len: f
     z = np.concatenate(pts)
     za, zb = z, np.roll(z, -1)
     va, ma = ev.value(za)
-    small = np.abs(va) <= 1e-10 * ma
+    # (1e-10: a root that close is moved off at once; high up, the rounding level can be higher)
+    small = np.abs(va) <= np.maximum(1e-10, 4.0 * ev.round_factor(np.abs(za))) * ma
     if np.any(small):  # a sample (numerically) on a root
         raise _OnBoundary(complex(za[np.argmax(small)]))
     vb, mb = np.roll(va, -1), np.roll(ma, -1)
     total = 0.0
-    err_factor = 8.0 * _EPS * ev.n_terms
+    # the Taylor bound (below) for segments that bisection alone has not settled in 8 rounds
+    sharp_len = float(np.max(np.abs(zb - za))) / 256.0
     while za.size:
         L = np.abs(zb - za)
         # bring the endpoint values to the segment's scaling rho_seg <= rho(endpoint)
@@ -212,9 +338,22 @@ def _winding(ev: _Evaluator, corners: Sequence[complex], step: float, min_len: f
         fa = np.exp(rho_seg - np.minimum(za.real, 0.0) * ev.tau_max)
         fb = np.exp(rho_seg - np.minimum(zb.real, 0.0) * ev.tau_max)
         ha, hb = np.abs(va) * fa, np.abs(vb) * fb
-        err = err_factor * np.maximum(ma * fa, mb * fb)
+        err = ev.round_factor(np.maximum(np.abs(za), np.abs(zb))) * np.maximum(ma * fa, mb * fb)
         M = ev.deriv_bound(za, zb)
         ok = 0.5 * M * L + err < np.minimum(ha, hb)
+        # Segments failing the coarse bound next to a root: the Taylor bound keeps the cancellation
+        # of h (decisive next to a multiple root), on segments short against the delays.
+        # Only where bisection would still need many rounds: the coarse bound asks for segments
+        # 16 times shorter (it is costly, and a simple root next to the path is settled in a few).
+        i_s = np.flatnonzero(~ok & (L <= sharp_len))
+        if i_s.size:
+            hmin = np.minimum(ha[i_s], hb[i_s])
+            Ls = L[i_s]
+            keep = (Ls * ev.tau_max <= 1.0) & (hmin > err[i_s]) & (32.0 * (hmin - err[i_s]) < Ls * M[i_s])
+            i_s = i_s[keep]
+            if i_s.size:
+                M2 = ev.taylor_deriv_bound(0.5 * (za[i_s] + zb[i_s]), 0.5 * L[i_s], rho_seg[i_s])
+                ok[i_s] = 0.5 * M2 * L[i_s] + err[i_s] < np.minimum(ha[i_s], hb[i_s])
         if np.any(ok):
             total += float(np.sum(np.angle(vb[ok] / va[ok])))
         bad = ~ok
@@ -261,15 +400,17 @@ def _count_with_shifts(
         except _OnBoundary as hit:
             p = hit.point
             dist = {"a": abs(p.real - a), "b": abs(p.real - b), "c": abs(p.imag - c), "d": abs(p.imag - d)}
-            edge = min(dist, key=dist.__getitem__)
-            if edge == "a":
-                a -= delta
-            elif edge == "b":
-                b += delta
-            elif edge == "c":
-                c -= delta
-            else:
-                d += delta
+            nearest = min(dist, key=dist.__getitem__)
+            # the nearest edge, and at a corner the other one too (a root next to a corner blocks both)
+            for edge in [e for e in dist if e == nearest or dist[e] <= delta]:
+                if edge == "a":
+                    a -= delta
+                elif edge == "b":
+                    b += delta
+                elif edge == "c":
+                    c -= delta
+                else:
+                    d += delta
             shifted = True
             delta *= 2.0
     raise RootFindingError(
@@ -379,6 +520,42 @@ def _inside(z: np.ndarray, rect: tuple[float, float, float, float]) -> np.ndarra
     return (z.real >= a) & (z.real <= b) & (z.imag >= c) & (z.imag <= d)
 
 
+def _taylor_and_tail(
+    q: QuasiPolynomial, c: complex, order: int, R0: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Taylor coefficients ``a_k`` of ``h`` about ``c`` (k <= order), their rounding errors and a
+    bound ``B`` of ``|h|`` on ``|s - c| = R0``, all times one positive factor ``exp(kappa)``.
+
+    ``kappa = min(0, Re c - R0) tau_max`` keeps every exponential at most 1 (no overflow
+    far left with long delays); a common positive factor changes no Pellet/Rouché test.
+    The rounding error counts the sums and the phase of ``exp(-c tau)``, rounded to
+    ``eps |c| tau`` (see :meth:`_Evaluator.round_factor`).
+    """
+    c = complex(c)
+    K = order + 1
+    tau_max = float(q.delays[-1])
+    kappa = min(0.0, c.real - R0) * tau_max
+    inv_fact = np.array([1.0 / math.factorial(j) for j in range(K)])
+    a = np.zeros(K, dtype=complex)
+    scale = np.zeros(K)
+    B = 0.0
+    for row, tau in zip(q.coeffs, q.delays):
+        pt = np.zeros(K, dtype=complex)
+        pabs = np.zeros(K)
+        prow = np.array(row, dtype=float)
+        for l in range(min(K, row.size)):
+            pt[l] = P.polyval(c, prow) * inv_fact[l]
+            pabs[l] = P.polyval(abs(c), np.abs(prow)) * inv_fact[l]
+            prow = P.polyder(prow) if prow.size > 1 else np.zeros(1)
+        et = (-tau) ** np.arange(K) * inv_fact
+        e0 = np.exp(-c * tau + kappa)
+        a += e0 * np.convolve(pt, et)[:K]
+        scale += abs(e0) * np.convolve(pabs, np.abs(et))[:K]
+        B += float(P.polyval(abs(c) + R0, np.abs(row))) * math.exp(-(c.real - R0) * tau + kappa)
+    err = _EPS * (8.0 * (order + q.coeffs.size) + 2.0 * abs(c) * tau_max) * scale
+    return a, err, np.abs(a), B
+
+
 def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> tuple[int, float, float] | None:
     """Certified number of roots in a small disk about ``c`` (Rouché/Pellet test).
 
@@ -395,12 +572,9 @@ def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> 
     only empty disks are certified, None when no radius up to ``rho_max`` separates
     a dominant term.
     """
-    a, scale = q.taylor(c, order)
-    err = 8.0 * _EPS * (order + q.coeffs.size) * scale
-    absa = np.abs(a)
     R0 = 4.0 * rho_max
     # |h| <= B on |s - c| = R0, hence |a_k| <= B / R0^k (Cauchy) for the tail k > order
-    B = float(np.sum(P.polyval(abs(c) + R0, np.abs(q.coeffs).T) * np.exp(-(c.real - R0) * q.delays)))
+    a, err, absa, B = _taylor_and_tail(q, c, order, R0)
     k = np.arange(order + 1)
     certified: list[tuple[float, int]] = []
     for j in range(39, -1, -1):
@@ -427,12 +601,62 @@ def _pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> 
     return m, rho, rho_iso
 
 
+def certified_radius(q: QuasiPolynomial, c: complex, m: int, rho_max: float, order: int = 16) -> float | None:
+    """Smallest radius (within a factor 2) of a disk about ``c`` certified to hold exactly ``m`` roots.
+
+    The Pellet/Rouché test of :func:`_pellet` for the term ``m``: with the
+    Taylor coefficients ``a_k`` of ``h`` about ``c`` (and their rounding errors),
+    ``|a_m| rho^m > sum_{k != m} |a_k| rho^k + tail`` means exactly ``m`` roots in
+    ``|s - c| < rho``.  The radius starts from the estimate where every lower term
+    is small against ``a_m`` and doubles up to ``rho_max``; ``None`` when no radius
+    passes.  For a simple root found by Newton this is about ``2 |h(c)| / |h'(c)|``
+    plus the rounding level (1e-16 relative at low frequency): the root's real part
+    is certified to within that radius.
+    """
+    c = complex(c)
+    if not (1 <= m <= order) or not (rho_max > 0):
+        return None
+    tau_max = float(q.delays[-1])
+    if tau_max > 0:
+        # a Cauchy circle R0 = 4 rho_max short against the delays: no exponential under/overflows
+        rho_max = min(rho_max, 0.25 / tau_max)
+    R0 = 4.0 * rho_max
+    a, err, absa, B = _taylor_and_tail(q, c, order, R0)
+    lead = absa[m] - err[m]
+    if not lead > 0:
+        return None
+    # no radius below the one where a lower term equals the m-th can pass
+    est = max([((absa[k] + err[k]) / lead) ** (1.0 / (m - k)) for k in range(m)] + [1e-16 * rho_max])
+    if est > rho_max:
+        return None
+    k = np.arange(order + 1)
+    n = int(math.floor(4.0 * math.log2(rho_max / est))) + 1
+    rho = est * 2.0 ** (np.arange(min(n, 400)) / 4.0)  # steps of 2^(1/4)
+    x = rho / R0
+    tail = B * x ** (order + 1) / (1.0 - x)
+    terms = (absa + err)[None, :] * rho[:, None] ** k[None, :]
+    ok = lead * rho**m > np.sum(terms, axis=1) - terms[:, m] + tail
+    return float(rho[np.argmax(ok)]) if np.any(ok) else None
+
+
+def _cluster_rho_max(simple_pts: np.ndarray, centre: complex, step: float) -> float:
+    """Largest Pellet radius for a cluster: well short of the nearest simple root and of the grid step."""
+    lim = [0.25 * step, 0.05 * max(1.0, abs(centre))]
+    if simple_pts.size:
+        lim.append(0.4 * float(np.min(np.abs(simple_pts - centre))))
+    return min(lim)
+
+
 class _Solver:
     def __init__(self, ev: _Evaluator, rect: tuple[float, float, float, float], step: float) -> None:
         self.ev = ev
         self.rect = rect
         self.step = step
         self.found: list[_Found] = []
+        # a root of h has multiplicity at most sum_k (deg p_k + 1) - 1 (Polya-Szego bound)
+        self.max_cluster = min(40, int(ev.q.coeffs.size))
+        # roots of a chain are about 2 pi / tau apart (see _grid_step); a polynomial has no such scale
+        self.delay_step = math.pi / (3.0 * ev.tau_max) if ev.tau_max > 0 else math.inf
 
     # merge newly converged points into the list of distinct roots
     def absorb(self, pts: np.ndarray) -> None:
@@ -491,16 +715,72 @@ class _Solver:
             if is_simple:
                 f.mult = 1
         suspects = [f for f, is_simple in zip(new, simple) if not is_simple]
-        polish: dict[int, list[tuple[complex, float]]] = {}
-        while suspects:
-            f = suspects.pop(0)
+        polish: dict[int, list[tuple[complex, float, float]]] = {}
+        if suspects:
+            # arrays (not lists searched per suspect): a search can hold thousands of clusters
+            sus_pts = np.array([g.point for g in suspects])
+            sus_alive = np.ones(sus_pts.size, dtype=bool)
+            known = [g for g in self.found if g.mult >= 1]
+            known_pts = np.array([g.point for g in known], dtype=complex)
+            known_simple = np.array([g.mult == 1 for g in known], dtype=bool)
+            known_alive = np.ones(known_pts.size, dtype=bool)
+        for i, f in enumerate(suspects):
+            if not sus_alive[i]:
+                continue
+            sus_alive[i] = False
             rc = min(1e-3 * max(1.0, abs(f.point)), 0.25 * self.step)
-            group = [f] + [g for g in suspects if abs(g.point - f.point) <= 2 * rc]
-            suspects = [g for g in suspects if g not in group]
+            idx = np.flatnonzero(sus_alive & (np.abs(sus_pts - f.point) <= 2 * rc))
+            sus_alive[idx] = False
+            group = [f] + [suspects[j] for j in idx]
             centre = complex(np.mean([g.point for g in group]))
-            others = [abs(g.point - centre) for g in self.found if g.mult == 1]
-            rho_max = min([0.4 * x for x in others] + [0.25 * self.step, 0.05 * max(1.0, abs(centre))])
+            sel = known_alive & known_simple
+            rho_max = _cluster_rho_max(known_pts[sel], centre, self.step)
             got = _pellet(ev.q, centre, rho_max)
+            if got is None:
+                # A cluster split by rounding (e.g. the fourfold ZV^4 zeros high up, where the float
+                # delays are no longer exactly commensurate) can have had one member taken for a
+                # simple root by an earlier pass; that root then shrinks rho_max below the cluster.
+                # Take the roots already found within the cluster scale into the cluster and retry.
+                near = np.flatnonzero(known_alive & (np.abs(known_pts - centre) <= rc))
+                if near.size:
+                    centre = complex(np.mean(np.concatenate([[g.point for g in group], known_pts[near]])))
+                    sel = known_alive & known_simple
+                    sel[near] = False
+                    rho_max = _cluster_rho_max(known_pts[sel], centre, self.step)
+                    got = _pellet(ev.q, centre, rho_max)
+                    if got is not None and got[0] >= 1:
+                        for j in near:
+                            known[j].mult = -1
+                        known_alive[near] = False
+            if got is None:
+                # Newton stalls about (rounding)^(1/m) away from an m-fold root, scattered around it
+                # (1e-2 for a sixfold root), so the mean of the points found can be too far off for a
+                # Pellet disk.  The root of h^(k) next to them is the cluster's centre for k = m - 1.
+                # The disk may also need to be wider than a small region's grid step (a sixfold
+                # cluster is 0.05 wide at s = -3): bounded by the delays' step instead, and short of
+                # every root already known (clusters included), so that no disk counts one twice.
+                # (A sixfold cluster high up, where the phase of exp(-s tau) is rounded to 1e-12, is
+                # 0.04 wide and needs a disk of 0.3: up to the delays' step, a sixth of a chain's spacing.)
+                sel = known_alive.copy()
+                wide = 4.0 * max(self.step, self.delay_step)
+                rho_c = _cluster_rho_max(known_pts[sel], centre, wide)
+                for kd in range(0, self.max_cluster):
+                    dk = ev.q.derivative(kd)
+                    if dk.is_zero:
+                        break
+                    if kd == 0:
+                        c2 = centre  # first the mean itself, in the wider disk
+                    else:
+                        # a few steps suffice for a centre (Newton is linear on a multiple root of h^(k))
+                        zc, _ = _newton(ev, np.array([centre]), rho_c, q=dk, iters=12)
+                        if not np.isfinite(zc[0]) or abs(zc[0] - centre) > rho_c:
+                            continue
+                        c2 = complex(zc[0])
+                    got = _pellet(ev.q, c2, _cluster_rho_max(known_pts[sel], c2, wide))
+                    if got is not None and got[0] >= 1:
+                        centre = c2
+                        break
+                    got = None
             if got is None:
                 raise RootFindingError(f"could not isolate the root cluster near {centre:.6g}")
             m, r, r_iso = got
@@ -509,10 +789,10 @@ class _Solver:
             if m <= 0:
                 continue
             # other suspects in the isolation disk are among these m roots: one cluster, counted once
-            inside = [g for g in suspects if abs(g.point - centre) < r_iso]
-            for g in inside:
-                g.mult = -1
-            suspects = [g for g in suspects if g not in inside]
+            inside = np.flatnonzero(sus_alive & (np.abs(sus_pts - centre) < r_iso))
+            for j in inside:
+                suspects[j].mult = -1
+            sus_alive[inside] = False
             polish.setdefault(m, []).append((centre, r, r_iso))
         # polish every cluster of multiplicity m at once, on h^{(m-1)} where an m-fold root is simple
         for m, items in polish.items():
@@ -532,7 +812,8 @@ class _Solver:
         if cand.size:
             z, ok = _newton(self.ev, cand, max_step=2.0 * step)
             # multiple roots stall Newton at rounding level: keep those points too
-            ok |= _rel_residual(self.ev.q, z) <= 1e-12
+            # (the rounding level grows with |s| tau: the phase of exp(-s tau) is rounded)
+            ok |= _rel_residual(self.ev.q, z) <= np.maximum(1e-12, 64.0 * self.ev.round_factor(np.abs(z)))
             self.absorb(z[ok])
             self.classify()
 
@@ -593,8 +874,10 @@ class Roots:
         reported once, at the simple root of ``h^{(m-1)}`` inside a disk where
         a Rouché/Pellet test certifies exactly ``m`` roots; rounding of the
         coefficients splits an exact ``m``-fold root into a tight cluster
-        (about ``eps^{1/m}`` wide, e.g. 7e-4 for the fourfold zeros of ZVD^3),
-        and such a cluster is what this reports.
+        (about ``eps^{1/m}`` wide, e.g. 7e-4 for the fourfold zeros of ZVD^3;
+        higher up the rounded delays are no longer exactly commensurate and the
+        cluster widens, 3e-3 at 7000 rad/s), and such a cluster is what this
+        reports.
     residuals : ndarray of float
         Relative residual ``|h(r)| / sum_i |p_i(r) exp(-r tau_i)|`` of each distinct root.
     region : tuple
@@ -670,7 +953,13 @@ def roots(
     Raises
     ------
     ValueError, TypeError
-        Bad ``h`` (identically zero, not a quasi-polynomial) or ``region``.
+        Bad ``h`` (identically zero, not a quasi-polynomial), ``region`` (also one
+        so far from the origin that the polynomial terms leave the float range: the
+        message gives the size reached and the largest usable ``|s|``), or a
+        ``max_evaluations``/``timeout`` that is not a finite number > 0.
+    BudgetExceeded
+        The region's grid is over the budget (refused up front, with the estimate),
+        or the evaluations or time ran out.
     RootFindingError
         The roots found cannot be reconciled with the certified count.
 
@@ -688,11 +977,10 @@ def roots(
     """
     q0 = as_quasipolynomial(h)
     rect = check_region(region)
-    if not (isinstance(max_evaluations, (int, float)) and max_evaluations > 0):
-        raise ValueError(f"max_evaluations must be > 0, got {max_evaluations!r}")
-    if not (isinstance(timeout, (int, float)) and timeout > 0):
-        raise ValueError(f"timeout must be > 0 seconds, got {timeout!r}")
+    max_evaluations, timeout = check_budget(max_evaluations, timeout)
+    ign = None if ignore is None else check_ignore(ignore)
     q, _ = q0.factor_min_delay()
+    check_range(q, rect)
     ev = _Evaluator(q, int(max_evaluations), time.monotonic() + float(timeout))
     step = _grid_step(q, rect)
     nx, ny = _grid_shape(rect, step)
@@ -723,13 +1011,7 @@ def roots(
     near_real = np.abs(pts.imag) <= 1e-13 * np.maximum(np.abs(pts), 1.0)
     pts[near_real] = pts[near_real].real
     removed = []
-    if ignore is not None:
-        try:
-            ign = np.atleast_1d(np.asarray(ignore, dtype=complex)).ravel()
-        except (TypeError, ValueError) as exc:
-            raise TypeError("ignore must be an array of complex numbers") from exc
-        if not np.all(np.isfinite(ign)):
-            raise ValueError("ignore must contain finite points (no NaN or inf)")
+    if ign is not None:
         for p in ign:
             if pts.size == 0:
                 break
