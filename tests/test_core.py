@@ -203,3 +203,52 @@ def test_transfer_function_rejects_bad_input():
         delay(np.nan)
     with pytest.raises(ValueError, match="omega"):
         TransferFunction.constant(1.0).freqresp([np.nan])
+
+
+# ---------------------------------------------------------------- issue #13: hostile input
+def test_evaluation_outside_the_float_range_is_a_named_error():
+    """exp(800) overflows a double (max ~1.8e308 = exp(709.8)): the value at s = -800 is not representable."""
+    h = QuasiPolynomial([[1.0], [1.0]], [0.0, 1.0])  # 1 + exp(-s)
+    assert abs(h(-700.0) - (1.0 + np.exp(700.0))) <= 1e-12 * np.exp(700.0)
+    with pytest.raises(ValueError, match="s = -800"):
+        h(-800.0)
+    with pytest.raises(ValueError, match="omega"):
+        TransferFunction.from_poly([1.0], [1.0, 0.0, 0.0, 0.0]).freqresp([1e200])  # (1e200)^3 overflows
+    with pytest.raises(TypeError, match="s must be a complex"):
+        h("1j")
+    with pytest.raises(ValueError, match="s must be finite"):
+        h([1.0, np.nan])
+
+
+def test_orders_and_operands_are_bounded_and_named():
+    h = QuasiPolynomial([[1.0, 1.0], [0.5, 0.0]], [0.0, 1.0])
+    with pytest.raises(ValueError, match=r"order must be an integer in \[0, 1000\]"):
+        h.derivative(10**12)  # would loop for hours
+    with pytest.raises(ValueError, match=r"order must be an integer in \[0, 170\]"):
+        h.taylor(0.0, 171)  # 1/171! underflows
+    with pytest.raises(TypeError, match="order"):
+        h.derivative(1.5)
+    with pytest.raises(ValueError, match="factor"):
+        h.scaled(1e300).scaled(1e300)
+    with pytest.raises(ValueError, match="delay must be >= 0"):
+        h.shift(-1.0)
+    with pytest.raises(TypeError, match="other"):
+        h.equals("h")
+    with pytest.raises(TypeError, match="complex"):  # no silent loss of an imaginary part
+        QuasiPolynomial([[1j]])
+
+
+def test_ill_posed_operations_are_value_errors_and_zero_divisions():
+    from posicast.core.transfer import IllPosed
+
+    one = TransferFunction.constant(1.0)
+    with pytest.raises(IllPosed):
+        one.feedback(1.0, sign=+1)  # 1 / (1 - 1): identically zero denominator
+    with pytest.raises(ValueError):
+        TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0)).inverse()
+    with pytest.raises(ZeroDivisionError):
+        TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0)).inverse()
+    with pytest.raises(TypeError, match="sign"):
+        one.feedback(1.0, sign="-")
+    with pytest.raises(TypeError, match="other"):
+        one.feedback("C")

@@ -458,3 +458,51 @@ def test_sampled_load_output_is_the_exact_held_input_response():
                           sample_rate=1000.0)
     assert r.diverged is None
     assert np.max(np.abs(r.y - _load_response(loop, r.up, r.d, 1e-3))) < 1e-10 * np.max(np.abs(r.y))
+
+
+def test_large_work_is_refused_up_front_with_the_estimate():
+    """Issue #13: the refusal names the estimate and the parameter to change, before any allocation."""
+    loop = posicast.control_action(G=G, F=F, C=C, S=posicast.design("zv", MODE))
+    # 10^8 samples as a zero-stride view: 16 bytes of grid, tens of GB of simulation (measured ~350 MB
+    # per 10^6 samples)
+    t = np.lib.stride_tricks.as_strided(np.arange(1.0), shape=(10**8,), strides=(0,))
+    with pytest.raises(ValueError, match=r"simulating 1e\+08 samples would need about [0-9.]+ GB .*fewer samples in t"):
+        simulate(loop, t)
+    t = np.arange(0.0, 100.0, 1.0)  # 100 samples, but a 1 s step: 1000 fine steps each by default ...
+    with pytest.raises(ValueError, match="substeps"):
+        simulate(loop, t, substeps=10**6)  # ... and 10^8 with this
+    with pytest.raises(ValueError, match=r"substeps must be an integer in \[1, 1000000\]"):
+        simulate(loop, t, substeps=10**7)
+
+
+@pytest.mark.parametrize(
+    "kwargs, exc, word",
+    [
+        ({"sample_rate": 5e-324}, ValueError, "longer than the simulated time"),
+        ({"controller_method": ["zoh"]}, TypeError, "controller_method"),
+        ({"divergence_limit": float("nan")}, ValueError, "divergence_limit"),
+        ({"w": np.ones(4000) * 1j}, TypeError, "w must be real"),
+        ({"substeps": 2.5}, TypeError, "substeps"),
+    ],
+)
+def test_hostile_arguments_are_named(kwargs, exc, word):
+    loop = posicast.control_action(G=G, F=F, C=C, S=posicast.design("zv", MODE))
+    t = np.arange(0.0, 4.0, 1e-3)
+    with pytest.raises(exc, match=word):
+        simulate(loop, t, **kwargs)
+
+
+def test_response_methods_check_their_arguments():
+    loop = posicast.feedforward(G=G, F=F, C=C, S=posicast.design("zv", MODE))
+    t = np.arange(0.0, 2.0, 1e-3)
+    r = simulate(loop, t, w=np.ones(t.size))
+    with pytest.raises(ValueError, match="start = 5 s is beyond"):
+        r.settling_time(start=5.0)
+    with pytest.raises(ValueError, match="after"):
+        r.residual_vibration(after=float("nan"))
+    with pytest.raises(TypeError, match="signal"):
+        r.peak(["u"])
+    with pytest.raises(ValueError, match="tol"):
+        r.settling_time(tol=0.0)
+    with pytest.raises(TypeError, match="axes"):
+        r.plot(axes="ax")

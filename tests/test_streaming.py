@@ -207,3 +207,19 @@ def test_c_export_compiles_and_runs(kind, acc, tmp_path):
     # float32 taps, double accumulator: measured 5.9e-9 zv, 4.9e-8 dzv; float accumulator over
     # N taps: up to ~N * 2^-24 (measured 5.9e-9 zv (3 nonzero taps), 4.2e-6 dzv (570 taps))
     assert err <= (1e-6 if acc == "double" or kind == "zv" else N * 2.0**-24)
+
+
+def test_sample_rate_beyond_the_tap_budget_is_refused_with_the_estimate():
+    """A ZV at 10 rad/s is pi/10 s long: at 1e12 Hz that is 3.1e11 taps (2.5 TB), refused before allocation."""
+    from posicast.simulate.streaming import MAX_TAPS
+
+    S = pc.design("zv", pc.Mode(10.0, 0.0))
+    with pytest.raises(ValueError, match=r"would need about 3\.14e\+11 taps .*lower sample_rate"):
+        discretize(S, 1e12)
+    n = discretize(S, 0.9 * MAX_TAPS / (np.pi / 10)).n_taps  # just inside the budget
+    assert n <= MAX_TAPS
+    D = discretize(S, 100.0)
+    with pytest.raises(ValueError, match="z must be nonzero"):
+        D(0.0)
+    with pytest.raises(ValueError, match="s = "):
+        D.at_s(-1e6)  # exp(-1e4) underflows: z = 0

@@ -15,24 +15,42 @@ from typing import Iterable, Sequence
 import numpy as np
 from numpy.polynomial import polynomial as P
 
+from .. import _validate as v
+
 __all__ = ["QuasiPolynomial"]
 
 # Two delays closer than this (relative to the largest) are the same delay.
 _DELAY_RTOL = 1e-12
+# Largest derivative / Taylor order accepted (1/k! underflows the float range past 170).
+_MAX_DERIVATIVE = 1000
+_MAX_TAYLOR = 170
 
 
 def _as_real_matrix(coeffs: object, name: str) -> np.ndarray:
-    try:
-        arr = np.array(coeffs, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers") from exc
-    if arr.ndim == 1:
+    arr = v.strict_real_array(coeffs, name)  # TypeError: strings, complex, ragged; ValueError: NaN, inf, empty
+    if arr.ndim == 0:
+        arr = arr.reshape(1, 1)
+    elif arr.ndim == 1:
         arr = arr[np.newaxis, :]
     if arr.ndim != 2:
         raise ValueError(f"{name} must be a 2-D array (one row per delay), got {arr.ndim}-D")
+    if arr.shape[1] == 0:
+        raise ValueError(f"{name} must have at least one column (the s**0 coefficients)")
+    return np.array(arr, dtype=float)
+
+
+def _finite_result(arr: np.ndarray, what: str) -> np.ndarray:
+    """``arr`` if finite, else a ValueError: an operation's result left the float range."""
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN or inf)")
+        raise ValueError(f"{what} overflows the float range (coefficients or delays too large)")
     return arr
+
+
+def _nonnegative_delay(delay: object, name: str) -> float:
+    d = v.finite_real(delay, name)
+    if d < 0:
+        raise ValueError(f"{name} must be >= 0 [s], got {d:g}")
+    return d
 
 
 class QuasiPolynomial:
@@ -67,10 +85,7 @@ class QuasiPolynomial:
         if delays is None:
             d = np.zeros(c.shape[0])
         else:
-            try:
-                d = np.array(delays, dtype=float).reshape(-1)
-            except (TypeError, ValueError) as exc:
-                raise TypeError("delays must be an array of real numbers") from exc
+            d = np.array(v.strict_real_array(delays, "delays", allow_empty=True), dtype=float).reshape(-1)
         if d.shape[0] != c.shape[0]:
             raise ValueError(
                 f"delays has {d.shape[0]} entries but coeffs has {c.shape[0]} rows"
@@ -88,17 +103,29 @@ class QuasiPolynomial:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_poly(cls, poly_desc: Sequence[float] | np.ndarray, delay: float = 0.0) -> QuasiPolynomial:
-        """One polynomial (numpy's descending-power convention) times ``exp(-s delay)``."""
-        arr = np.atleast_1d(np.array(poly_desc, dtype=float))
-        return cls(arr[::-1][np.newaxis, :], [delay])
+        """One polynomial (numpy's descending-power convention) times ``exp(-s delay)``.
+
+        >>> QuasiPolynomial.from_poly([1.0, 2.0], 0.5)      # (s + 2) exp(-0.5 s)
+        QuasiPolynomial((1*s + 2)*exp(-0.5*s))
+        """
+        arr = np.atleast_1d(v.strict_real_array(poly_desc, "poly_desc"))
+        if arr.ndim != 1:
+            raise ValueError(f"poly_desc must be a 1-D coefficient array, got shape {arr.shape}")
+        return cls(arr[::-1][np.newaxis, :], [_nonnegative_delay(delay, "delay")])
 
     @classmethod
     def from_terms(cls, terms: Iterable[tuple[Sequence[float] | float, float]]) -> QuasiPolynomial:
         """Build from ``[(poly_desc, delay), ...]`` pairs (descending powers)."""
         rows, delays = [], []
-        for poly, delay in terms:
-            rows.append(np.atleast_1d(np.array(poly, dtype=float))[::-1])
-            delays.append(delay)
+        for i, term in enumerate(v.sequence(terms, "terms")):
+            if isinstance(term, (str, bytes)) or not hasattr(term, "__len__") or len(term) != 2:
+                raise TypeError(f"terms[{i}] must be a (poly_desc, delay) pair, got {type(term).__name__}")
+            poly, delay = term
+            arr = np.atleast_1d(v.strict_real_array(poly, f"terms[{i}] polynomial"))
+            if arr.ndim != 1:
+                raise ValueError(f"terms[{i}] polynomial must be 1-D, got shape {arr.shape}")
+            rows.append(arr[::-1])
+            delays.append(_nonnegative_delay(delay, f"terms[{i}] delay"))
         if not rows:
             return cls.zero()
         width = max(len(r) for r in rows)
@@ -114,7 +141,12 @@ class QuasiPolynomial:
 
     @classmethod
     def constant(cls, value: float) -> QuasiPolynomial:
-        return cls([[float(value)]], [0.0])
+        """The constant ``value`` (finite).
+
+        >>> QuasiPolynomial.constant(2.0)(1j)
+        (2+0j)
+        """
+        return cls([[v.finite_real(value, "value")]], [0.0])
 
     # ------------------------------------------------------------------ properties
     @property
@@ -183,15 +215,27 @@ class QuasiPolynomial:
 
     # ------------------------------------------------------------------ evaluation
     def __call__(self, s: object) -> np.ndarray | complex:
-        """Evaluate at complex ``s`` (scalar or array, vectorised)."""
-        s_arr = np.asarray(s, dtype=complex)
+        """Evaluate at complex ``s`` (scalar or array, vectorised).
+
+        ``s`` must be finite; a value outside the float range (``|s|`` or ``-Re s``
+        too large for the powers and delays) is a ValueError naming ``s``.
+        """
+        s_arr = v.complex_array(s, "s")
+        out = self._eval(s_arr)
+        if not np.all(np.isfinite(out)):
+            bad = complex(s_arr.reshape(-1)[int(np.flatnonzero(~np.isfinite(np.reshape(out, -1)))[0])])
+            raise ValueError(f"s = {bad:.6g}: the value overflows the float range (|s| or -Re s too large "
+                             f"for the powers and delays of {self})")
+        return out if s_arr.ndim else complex(out)
+
+    def _eval(self, s_arr: np.ndarray) -> np.ndarray:
+        """Raw evaluation at a complex array (no checks; overflow gives inf/NaN, without warnings)."""
         if self.is_zero:
-            out = np.zeros_like(s_arr)
-        else:
+            return np.zeros_like(s_arr)
+        with np.errstate(all="ignore"):
             polys = P.polyval(s_arr, self.coeffs.T)  # shape (m,) + s.shape
             exps = np.exp(-np.multiply.outer(self.delays, s_arr))
-            out = np.sum(polys * exps, axis=0)
-        return out if np.ndim(s) else complex(out)
+            return np.sum(polys * exps, axis=0)
 
     def magnitude_scale(self, s: object) -> np.ndarray:
         """``sum_i |p_i(s)| |exp(-s tau_i)|`` summed term by term (absolute values).
@@ -202,14 +246,20 @@ class QuasiPolynomial:
         if self.is_zero:
             return np.zeros(s_arr.shape)
         absc = np.abs(self.coeffs)
-        polys = P.polyval(np.abs(s_arr), absc.T)
-        exps = np.abs(np.exp(-np.multiply.outer(self.delays, s_arr)))
-        return np.sum(polys * exps, axis=0)
+        with np.errstate(all="ignore"):  # a scale beyond the float range is inf
+            polys = P.polyval(np.abs(s_arr), absc.T)
+            exps = np.abs(np.exp(-np.multiply.outer(self.delays, s_arr)))
+            return np.sum(polys * exps, axis=0)
 
     def derivative(self, order: int = 1) -> QuasiPolynomial:
-        """Exact derivative: ``d/ds [p(s) e^{-s tau}] = (p'(s) - tau p(s)) e^{-s tau}``."""
-        if order < 0:
-            raise ValueError("order must be >= 0")
+        """Exact derivative: ``d/ds [p(s) e^{-s tau}] = (p'(s) - tau p(s)) e^{-s tau}``.
+
+        ``order`` is an integer in ``[0, 1000]``.
+
+        >>> QuasiPolynomial.from_poly([1.0, 0.0, 0.0]).derivative()     # d/ds s^2
+        QuasiPolynomial(2*s)
+        """
+        order = v.integer_in_range(order, "order", 0, _MAX_DERIVATIVE)
         q = self
         for _ in range(order):
             if q.is_zero:
@@ -219,7 +269,7 @@ class QuasiPolynomial:
             if c.shape[1] > 1:
                 deriv[:, :-1] = c[:, 1:] * np.arange(1, c.shape[1])
             deriv -= q.delays[:, np.newaxis] * c
-            q = QuasiPolynomial(deriv, q.delays)
+            q = QuasiPolynomial(_finite_result(deriv, f"the derivative of order {order}"), q.delays)
         return q
 
     def taylor(self, s0: complex, order: int) -> tuple[np.ndarray, np.ndarray]:
@@ -229,12 +279,16 @@ class QuasiPolynomial:
         the sum of the absolute values of the contributions to ``c[k]`` (a
         coefficient far below its scale is a cancellation to zero).
         """
+        order = v.integer_in_range(order, "order", 0, _MAX_TAYLOR)
+        arr = v.complex_array(s0, "s0")
+        if arr.ndim:
+            raise TypeError(f"s0 must be a complex number, got an array of shape {arr.shape}")
+        s0 = complex(arr)
         K = order + 1
         c = np.zeros(K, dtype=complex)
         scale = np.zeros(K)
         if self.is_zero:
             return c, scale
-        s0 = complex(s0)
         inv_fact = np.array([1.0 / factorial(k) for k in range(K)])
         for row, tau in zip(self.coeffs, self.delays):
             # Taylor coefficients of the polynomial about s0: p^{(l)}(s0) / l!
@@ -245,18 +299,22 @@ class QuasiPolynomial:
                 pt[l] = P.polyval(s0, prow) * inv_fact[l]
                 pabs[l] = P.polyval(abs(s0), np.abs(prow)) * inv_fact[l]
                 prow = P.polyder(prow) if len(prow) > 1 else np.zeros(1)
-            et = ((-tau) ** np.arange(K)) * inv_fact  # Taylor of exp(-tau h)
-            e0 = np.exp(-s0 * tau)
-            c += e0 * np.convolve(pt, et)[:K]
-            scale += abs(e0) * np.convolve(pabs, np.abs(et))[:K]
+            with np.errstate(all="ignore"):
+                et = ((-tau) ** np.arange(K)) * inv_fact  # Taylor of exp(-tau h)
+                e0 = np.exp(-s0 * tau)
+                c += e0 * np.convolve(pt, et)[:K]
+                scale += abs(e0) * np.convolve(pabs, np.abs(et))[:K]
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(scale))):
+            raise ValueError(f"s0 = {s0:.6g}: the Taylor coefficients overflow the float range (|s0| or -Re s0 "
+                             f"too large for the powers and delays)")
         return c, scale
 
     # ------------------------------------------------------------------ algebra
     def _coerce(self, other: object) -> QuasiPolynomial | None:
         if isinstance(other, QuasiPolynomial):
             return other
-        if isinstance(other, (int, float, np.integer, np.floating)):
-            return QuasiPolynomial.constant(float(other))
+        if isinstance(other, (int, float, np.integer, np.floating)) and not isinstance(other, (bool, np.bool_)):
+            return QuasiPolynomial.constant(v.finite_real(other, "operand"))
         return None
 
     def __add__(self, other: object) -> QuasiPolynomial:
@@ -272,7 +330,8 @@ class QuasiPolynomial:
         a[:, : self.coeffs.shape[1]] = self.coeffs
         b = np.zeros((o.coeffs.shape[0], width))
         b[:, : o.coeffs.shape[1]] = o.coeffs
-        return QuasiPolynomial(np.vstack([a, b]), np.concatenate([self.delays, o.delays]))
+        with np.errstate(all="ignore"):
+            return _merge(np.vstack([a, b]), np.concatenate([self.delays, o.delays]), "the sum")
 
     __radd__ = __add__
 
@@ -298,23 +357,29 @@ class QuasiPolynomial:
         if self.is_zero or o.is_zero:
             return QuasiPolynomial.zero()
         rows, delays = [], []
-        for ra, ta in zip(self.coeffs, self.delays):
-            for rb, tb in zip(o.coeffs, o.delays):
-                rows.append(P.polymul(ra, rb))
-                delays.append(ta + tb)
-        width = max(len(r) for r in rows)
-        mat = np.zeros((len(rows), width))
-        for i, r in enumerate(rows):
-            mat[i, : len(r)] = r
-        return QuasiPolynomial(mat, delays)
+        with np.errstate(all="ignore"):
+            for ra, ta in zip(self.coeffs, self.delays):
+                for rb, tb in zip(o.coeffs, o.delays):
+                    rows.append(P.polymul(ra, rb))
+                    delays.append(ta + tb)
+            width = max(len(r) for r in rows)
+            mat = np.zeros((len(rows), width))
+            for i, r in enumerate(rows):
+                mat[i, : len(r)] = r
+            return _merge(mat, np.array(delays), "the product")
 
     __rmul__ = __mul__
 
     def shift(self, delay: float) -> QuasiPolynomial:
-        """Multiply by ``exp(-s delay)`` (``delay >= 0``)."""
-        if delay < 0:
-            raise ValueError(f"delay must be >= 0, got {delay:g}")
-        return QuasiPolynomial(self.coeffs, self.delays + delay) if not self.is_zero else self
+        """Multiply by ``exp(-s delay)`` (``delay >= 0``, finite).
+
+        >>> QuasiPolynomial.constant(1.0).shift(0.5).delays
+        array([0.5])
+        """
+        delay = _nonnegative_delay(delay, "delay")
+        if self.is_zero:
+            return self
+        return QuasiPolynomial(self.coeffs, _finite_result(self.delays + delay, f"shifting by delay = {delay:g}"))
 
     def factor_min_delay(self) -> tuple[QuasiPolynomial, float]:
         """Return ``(q, tau_min)`` with ``self = q * exp(-s tau_min)`` and ``q`` undelayed in its first row."""
@@ -324,10 +389,29 @@ class QuasiPolynomial:
         return QuasiPolynomial(self.coeffs, self.delays - tau0), tau0
 
     def scaled(self, factor: float) -> QuasiPolynomial:
-        return QuasiPolynomial(self.coeffs * factor, self.delays) if not self.is_zero else self
+        """``factor * h`` (``factor`` a finite real).
+
+        >>> QuasiPolynomial.constant(2.0).scaled(-1.5)(0.0)
+        (-3+0j)
+        """
+        factor = v.finite_real(factor, "factor")
+        if self.is_zero:
+            return self
+        with np.errstate(all="ignore"):
+            c = self.coeffs * factor
+        return QuasiPolynomial(_finite_result(c, f"scaling by factor = {factor:g}"), self.delays)
 
     def equals(self, other: QuasiPolynomial, rtol: float = 1e-12) -> bool:
-        """Structural equality up to a relative tolerance on coefficients and delays."""
+        """Structural equality up to a relative tolerance on coefficients and delays.
+
+        >>> QuasiPolynomial.constant(1.0).equals(QuasiPolynomial([[1.0 + 1e-15]]))
+        True
+        """
+        if not isinstance(other, QuasiPolynomial):
+            raise TypeError(f"other must be a QuasiPolynomial, got {type(other).__name__}")
+        rtol = v.finite_real(rtol, "rtol")
+        if rtol < 0:
+            raise ValueError(f"rtol must be >= 0, got {rtol:g}")
         if self.coeffs.shape != other.coeffs.shape:
             return False
         if self.is_zero:
@@ -353,6 +437,13 @@ class QuasiPolynomial:
             else:
                 parts.append(f"({poly})*exp(-{tau:.6g}*s)")
         return " + ".join(parts)
+
+
+def _merge(mat: np.ndarray, delays: np.ndarray, what: str) -> QuasiPolynomial:
+    """A QuasiPolynomial from an algebra result, or a ValueError if it left the float range."""
+    _finite_result(mat, what)
+    _finite_result(delays, what)
+    return QuasiPolynomial(mat, delays)
 
 
 def _poly_str(row: np.ndarray) -> str:

@@ -18,19 +18,29 @@ from typing import Any
 
 import numpy as np
 
+from .. import _validate as v
 from .quasipoly import QuasiPolynomial
 
-__all__ = ["TransferFunction", "as_transfer", "delay", "finite_complex"]
+__all__ = ["TransferFunction", "as_transfer", "delay", "finite_complex", "IllPosed"]
+
+
+class IllPosed(ValueError, ZeroDivisionError):
+    """An operation with no finite answer (inverting zero, an identically zero closed loop).
+
+    A ValueError (bad input, one named message) and, for code written against earlier
+    versions, a ZeroDivisionError.
+    """
 
 
 def finite_complex(s: Any, name: str = "s") -> np.ndarray:
-    """``s`` as a complex array, or ValueError if any entry is NaN or infinite."""
-    try:
-        arr = np.asarray(s, dtype=complex)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a complex number or array") from exc
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    """``s`` as a complex array: TypeError for strings/objects, ValueError if any entry is NaN or infinite."""
+    return v.complex_array(s, name)
+
+
+def _coeff_vector(value: Any, name: str) -> np.ndarray:
+    arr = np.atleast_1d(v.strict_real_array(value, name))
+    if arr.ndim != 1:
+        raise ValueError(f"{name} must be a 1-D coefficient array, got shape {arr.shape}")
     return arr
 
 _TAYLOR_ORDER = 24
@@ -84,22 +94,30 @@ class TransferFunction:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_poly(cls, num_desc: Any, den_desc: Any, delay: float = 0.0) -> TransferFunction:
-        """Rational ``num/den`` (numpy descending-power coefficients) times ``exp(-s delay)``."""
-        num = np.atleast_1d(np.array(num_desc, dtype=float))
-        den = np.atleast_1d(np.array(den_desc, dtype=float))
-        for name, arr in (("num", num), ("den", den)):
-            if arr.ndim != 1:
-                raise ValueError(f"{name} must be a 1-D coefficient array, got shape {arr.shape}")
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"{name} coefficients must be finite")
+        """Rational ``num/den`` (numpy descending-power coefficients) times ``exp(-s delay)``.
+
+        ``num`` and ``den`` are non-empty 1-D arrays of finite reals (``den`` not all
+        zero), ``delay`` a finite number >= 0.
+
+        >>> TransferFunction.from_poly([1.0], [1.0, 1.0])(0.0)
+        (1+0j)
+        """
+        num = _coeff_vector(num_desc, "num")
+        den = _coeff_vector(den_desc, "den")
         if not np.any(den != 0):
             raise ValueError("den must not be identically zero")
-        if not (np.isfinite(delay) and delay >= 0):
-            raise ValueError(f"delay must be finite and >= 0, got {delay!r}")
-        return cls(QuasiPolynomial.from_poly(num, delay), QuasiPolynomial.from_poly(den))
+        d = v.finite_real(delay, "delay")
+        if d < 0:
+            raise ValueError(f"delay must be finite and >= 0, got {d:g}")
+        return cls(QuasiPolynomial.from_poly(num, d), QuasiPolynomial.from_poly(den))
 
     @classmethod
     def constant(cls, value: float) -> TransferFunction:
+        """The static gain ``value`` (finite).
+
+        >>> TransferFunction.constant(2.0)(1j)
+        (2+0j)
+        """
         return cls(QuasiPolynomial.constant(value), QuasiPolynomial.constant(1.0))
 
     # ------------------------------------------------------------------ inspection
@@ -134,14 +152,19 @@ class TransferFunction:
                         continue
                     # far left, the delays' exponentials overflow: such a root is no removable point
                     with np.errstate(over="ignore", invalid="ignore"):
-                        nv, scale = abs(self.num(r)), float(self.num.magnitude_scale(r))
+                        nv = abs(complex(self.num._eval(np.asarray(r, dtype=complex))))
+                        scale = float(self.num.magnitude_scale(r))
                     if np.isfinite(nv) and np.isfinite(scale) and nv <= 1e-8 * max(1.0, scale):
                         pts.append(complex(r))
             self._expansion_points = np.array(pts, dtype=complex)
         return self._expansion_points
 
     def __call__(self, s: Any) -> Any:
-        """Evaluate ``H(s)`` at complex ``s`` (scalar or array).  Poles give ``inf``."""
+        """Evaluate ``H(s)`` at complex ``s`` (scalar or array).  Poles give ``inf``.
+
+        ``s`` must be finite; where ``N(s)`` or ``D(s)`` leaves the float range the
+        evaluation is a ValueError naming ``s``.
+        """
         s_arr = finite_complex(s)
         flat = s_arr.reshape(-1)
         N = np.atleast_1d(self.num(flat))
@@ -163,7 +186,10 @@ class TransferFunction:
             for idx in np.flatnonzero(bad):
                 out[idx] = self._limit_at(flat[idx])
         out = out.reshape(s_arr.shape)
-        return out if np.ndim(s) else complex(out)
+        if np.any(np.isnan(out)):  # no finite limit found where N and D both overflowed
+            bad = complex(s_arr.reshape(-1)[int(np.flatnonzero(np.isnan(out.reshape(-1)))[0])])
+            raise ValueError(f"s = {bad:.6g}: H(s) is outside the float range there")
+        return out if s_arr.ndim else complex(out)
 
     def _taylor_ratio(self, s0: complex, h: np.ndarray) -> np.ndarray:
         key = complex(s0)
@@ -201,11 +227,16 @@ class TransferFunction:
         return complex(np.inf)
 
     def freqresp(self, omega: Any) -> np.ndarray:
-        """Frequency response ``H(j omega)`` for real ``omega`` (rad/s)."""
-        w = np.asarray(omega, dtype=float)
-        if not np.all(np.isfinite(w)):
-            raise ValueError("omega must be finite")
-        return np.asarray(self(1j * w))
+        """Frequency response ``H(j omega)`` for real ``omega`` (rad/s).
+
+        >>> complex(TransferFunction.from_poly([1.0], [1.0, 1.0]).freqresp([1.0])[0])
+        (0.5-0.5j)
+        """
+        w = v.strict_real_array(omega, "omega", allow_empty=True)
+        try:
+            return np.asarray(self(1j * w))
+        except ValueError as exc:  # H(j omega) outside the float range: name the argument given
+            raise ValueError(f"omega: {exc}") from None
 
     def dc_gain(self) -> float:
         """``H(0)`` as a real number (``inf`` for a pole at 0)."""
@@ -238,8 +269,8 @@ class TransferFunction:
     def series(self, *others: Any) -> TransferFunction:
         """Series connection ``self * others[0] * ...``."""
         out = self
-        for o in others:
-            out = out * as_transfer(o)
+        for i, o in enumerate(others):
+            out = out * v.system(o, f"others[{i}]")
         return out
 
     def __add__(self, other: Any) -> TransferFunction:
@@ -255,8 +286,8 @@ class TransferFunction:
     def parallel(self, *others: Any) -> TransferFunction:
         """Parallel connection ``self + others[0] + ...``."""
         out = self
-        for o in others:
-            out = out + as_transfer(o)
+        for i, o in enumerate(others):
+            out = out + v.system(o, f"others[{i}]")
         return out
 
     def __neg__(self) -> TransferFunction:
@@ -277,7 +308,7 @@ class TransferFunction:
     def inverse(self) -> TransferFunction:
         """``1 / H`` (exact: numerator and denominator swap)."""
         if self.num.is_zero:
-            raise ZeroDivisionError("cannot invert a zero transfer function")
+            raise IllPosed("cannot invert a zero transfer function")
         return TransferFunction(self.den, self.num)
 
     def __truediv__(self, other: Any) -> TransferFunction:
@@ -298,13 +329,15 @@ class TransferFunction:
         ``sign=-1`` (default) is negative feedback.  Exact:
         ``N_H D_K / (D_H D_K - sign N_H N_K)``.
         """
+        if isinstance(sign, (bool, np.bool_)) or not isinstance(sign, (int, float, np.integer, np.floating)):
+            raise TypeError(f"sign must be -1 or +1, got {type(sign).__name__}")
         if sign not in (-1, 1):
             raise ValueError(f"sign must be -1 or +1, got {sign!r}")
-        k = as_transfer(other)
+        k = v.system(other, "other")
         num = self.num * k.den
         den = self.den * k.den - (self.num * k.num).scaled(float(sign))
         if den.is_zero:
-            raise ZeroDivisionError("the closed loop has an identically zero characteristic function")
+            raise IllPosed("the closed loop has an identically zero characteristic function")
         return TransferFunction(num, den)
 
     # ------------------------------------------------------------------ conversion
@@ -345,9 +378,10 @@ def delay(tau: float) -> TransferFunction:
     >>> bool(abs(delay(0.5)(1j * np.pi) - np.exp(-0.5j * np.pi)) < 1e-15)
     True
     """
-    if not (np.isfinite(tau) and tau >= 0):
-        raise ValueError(f"tau must be finite and >= 0, got {tau!r}")
-    return TransferFunction(QuasiPolynomial([[1.0]], [float(tau)]), QuasiPolynomial.constant(1.0))
+    t = v.finite_real(tau, "tau")
+    if t < 0:
+        raise ValueError(f"tau must be finite and >= 0, got {t:g}")
+    return TransferFunction(QuasiPolynomial([[1.0]], [t]), QuasiPolynomial.constant(1.0))
 
 
 def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
@@ -365,6 +399,8 @@ def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
     TypeError
         For anything else, naming ``name``.
     """
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a string (the argument's name in messages), got {type(name).__name__}")
     if isinstance(obj, TransferFunction):
         return obj
     tf = getattr(obj, "transfer", None)
@@ -373,11 +409,12 @@ def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
     if isinstance(obj, (bool, np.bool_)):
         raise TypeError(f"{name} must be a transfer function, (num, den) or a number, got a bool")
     if isinstance(obj, (int, float, np.integer, np.floating)):
-        if not np.isfinite(obj):
-            raise ValueError(f"{name} must be finite")
-        return TransferFunction.constant(float(obj))
+        return TransferFunction.constant(v.finite_real(obj, name))
     if isinstance(obj, tuple) and len(obj) == 2:
-        return TransferFunction.from_poly(obj[0], obj[1])
+        try:
+            return TransferFunction.from_poly(obj[0], obj[1])
+        except (TypeError, ValueError) as exc:
+            raise type(exc)(f"{name} = (num, den): {exc}") from None
     mod = type(obj).__module__ or ""
     if mod.startswith("scipy.signal"):
         if getattr(obj, "dt", None) not in (None, 0):

@@ -8,8 +8,13 @@ from __future__ import annotations
 
 import html
 import math
+import os
+import re
+import tempfile
 from pathlib import Path
 from typing import Any, Sequence
+
+from .. import _validate as v
 
 __all__ = ["Report"]
 
@@ -52,35 +57,56 @@ class Report:
     """
 
     def __init__(self, title: str, out_dir: str | Path) -> None:
-        self.title = title
-        self.out = Path(out_dir)
-        self.out.mkdir(parents=True, exist_ok=True)
+        self.title = _text(title, "title")
+        if isinstance(out_dir, bytes) or not isinstance(out_dir, (str, os.PathLike)):
+            raise TypeError(f"out_dir must be a directory path (str or os.PathLike), got {type(out_dir).__name__}")
+        text = os.fspath(out_dir)
+        if not isinstance(text, str) or not text.strip() or "\x00" in text:
+            raise ValueError(f"out_dir must be a directory path, got {text!r}")
+        self.out = Path(text)
+        if self.out.exists() and not self.out.is_dir():
+            raise ValueError(f"out_dir {text!r} exists and is not a directory")
+        try:
+            self.out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"out_dir {text!r} cannot be created: {exc.strerror or exc}") from None
         self._parts: list[str] = []
         self._n_fig = 0
 
     def section(self, title: str, text: str | None = None) -> None:
-        self._parts.append(f"<h2>{html.escape(title)}</h2>")
-        if text:
+        self._parts.append(f"<h2>{html.escape(_text(title, 'title'))}</h2>")
+        if text is not None and _text(text, "text"):
             self.paragraph(text)
 
     def paragraph(self, text: str) -> None:
         """A paragraph; ``text`` is trusted HTML (written by posicast itself)."""
-        self._parts.append(f"<p>{text}</p>")
+        self._parts.append(f"<p>{_text(text, 'text')}</p>")
 
     def note(self, text: str) -> None:
-        self._parts.append(f'<div class="note">{text}</div>')
+        self._parts.append(f'<div class="note">{_text(text, "text")}</div>')
 
     def table(self, headers: Sequence[str], rows: Sequence[Sequence[Any]], digits: int = 4) -> None:
-        head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
-        body = "".join("<tr>" + "".join(f"<td>{_fmt(c, digits)}</td>" for c in row) + "</tr>" for row in rows)
-        self._parts.append(f"<table><tr>{head}</tr>{body}</table>")
+        heads = [_text(h, "headers") for h in v.sequence(headers, "headers")]
+        digits = v.integer_in_range(digits, "digits", 0, 17)
+        body_rows = []
+        for i, row in enumerate(v.sequence(rows, "rows")):
+            cells = v.sequence(row, f"rows[{i}]")
+            body_rows.append("<tr>" + "".join(f"<td>{_fmt(c, digits)}</td>" for c in cells) + "</tr>")
+        head = "".join(f"<th>{html.escape(h)}</th>" for h in heads)
+        self._parts.append(f"<table><tr>{head}</tr>{''.join(body_rows)}</table>")
 
     def figure(self, fig: Any, name: str, caption: str = "") -> None:
+        """Write ``fig`` as ``NN_name.png`` next to the page (atomically) and show it with ``caption``."""
         import matplotlib.pyplot as plt
 
+        if not callable(getattr(fig, "savefig", None)):
+            raise TypeError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
+        if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,80}", name):
+            raise ValueError(f"name must be 1 to 80 letters, digits, '_', '-' or '.', got {name!r}")
+        caption = _text(caption, "caption")
         self._n_fig += 1
         fname = f"{self._n_fig:02d}_{name}.png"
-        fig.savefig(self.out / fname, dpi=100, bbox_inches="tight")
+        _atomic(self.out / fname, lambda fh: fig.savefig(fh, format="png", dpi=100, bbox_inches="tight"))
         plt.close(fig)
         cap = f"<figcaption>{caption}</figcaption>" if caption else ""
         self._parts.append(f'<figure><img src="{fname}" alt="{html.escape(name)}" style="max-width:100%">{cap}</figure>')
@@ -93,5 +119,31 @@ class Report:
             + "</body></html>"
         )
         path = self.out / "index.html"
-        path.write_text(page, encoding="utf-8")
+        _atomic(path, lambda fh: fh.write(page.encode("utf-8")))
         return path
+
+
+def _text(value: Any, name: str) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f"{name} must be a string, got {type(value).__name__}")
+    return value
+
+
+def _atomic(path: Path, write: Any) -> None:
+    """Write through ``write(binary file)`` to a temporary file next to ``path``, then rename it onto ``path``;
+    nothing is left behind on error (a ValueError naming ``path``)."""
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+        mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, path)
+        tmp = None
+    except OSError as exc:
+        raise ValueError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)

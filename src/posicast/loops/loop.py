@@ -114,7 +114,9 @@ def feature_frequencies(tfs: Sequence[TransferFunction]) -> list[float]:
     [1.0, 2.0]
     """
     out: list[float] = []
-    for tf in tfs:
+    for i, tf in enumerate(v.sequence(tfs, "tfs")):
+        if not isinstance(tf, TransferFunction):
+            raise TypeError(f"tfs[{i}] must be a TransferFunction, got {type(tf).__name__}")
         for q in (tf.num, tf.den):
             if q.is_zero:
                 continue
@@ -157,6 +159,9 @@ def removable_points(num: QuasiPolynomial, den: QuasiPolynomial) -> np.ndarray:
     >>> removable_points(QuasiPolynomial.from_poly([1.0, 2.0]), QuasiPolynomial.from_poly([1.0, 1.0])).size
     0
     """
+    for name, q in (("num", num), ("den", den)):
+        if not isinstance(q, QuasiPolynomial):
+            raise TypeError(f"{name} must be a QuasiPolynomial, got {type(q).__name__}")
     if num.is_zero or den.is_zero or not den.is_polynomial or den.degree < 1:
         return np.zeros(0, dtype=complex)
     row = den.coeffs[0]
@@ -593,7 +598,7 @@ class Loop:
         >>> complex(loop.frequency_response("w", "z", [1.0])[0])   # 1 / (j + 1)
         (0.5-0.5j)
         """
-        w = v.real_array(omega, "omega")
+        w = v.strict_real_array(omega, "omega", allow_empty=True)
         return self.transfer(src, dst).freqresp(w)
 
     def default_omega(self) -> np.ndarray:
@@ -624,7 +629,7 @@ class Loop:
         >>> complex(data.response[0])
         -1j
         """
-        w = self.default_omega() if omega is None else v.real_array(omega, "omega").reshape(-1)
+        w = self.default_omega() if omega is None else v.strict_real_array(omega, "omega").reshape(-1)
         return NyquistResponse(w, self.loop_gain.freqresp(w), self.label)
 
     def margins(self, omega: Any = None) -> Margins:
@@ -649,7 +654,7 @@ class Loop:
         """
         from scipy.optimize import brentq, minimize_scalar
 
-        w = self.default_omega() if omega is None else np.unique(v.real_array(omega, "omega").reshape(-1))
+        w = self.default_omega() if omega is None else np.unique(v.strict_real_array(omega, "omega").reshape(-1))
         if w.size < 2:
             raise ValueError("omega must contain at least 2 frequencies")
         if np.any(w < 0):

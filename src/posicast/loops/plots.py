@@ -22,6 +22,8 @@ _COLORS = ("tab:blue", "tab:red", "tab:green", "tab:orange", "tab:purple", "tab:
 
 def _as_list(items: Any, name: str, types: tuple[type, ...]) -> list[Any]:
     seq = list(items) if isinstance(items, (list, tuple)) else [items]
+    if len(seq) > 50:
+        raise ValueError(f"{name}: at most 50 curves per plot, got {len(seq)}")
     if not seq:
         raise ValueError(f"{name} must not be empty")
     for it in seq:
@@ -33,13 +35,12 @@ def _as_list(items: Any, name: str, types: tuple[type, ...]) -> list[Any]:
 
 def _loops_with_labels(loop: Any, labels: Sequence[str] | None) -> list[Loop]:
     loops = _as_list(loop, "loop", (Loop,))
-    if labels is not None and len(labels) != len(loops):
-        raise ValueError(f"labels has {len(labels)} entries for {len(loops)} loops")
+    v.labels(labels, "labels", len(loops))
     return loops
 
 
 def _omega(omega: Any, positive: bool = False) -> np.ndarray:
-    w = v.real_array(omega, "omega").reshape(-1)
+    w = v.strict_real_array(omega, "omega", allow_empty=True).reshape(-1)
     if w.size < 2:
         raise ValueError("omega must contain at least 2 frequencies")
     if positive and np.any(w <= 0):
@@ -78,8 +79,17 @@ def bode_plot(
         ``ax_phase`` is None when a single Axes was given.
     """
     seq = _as_list(items, "items", (Loop, TransferFunction))
-    if labels is not None and len(labels) != len(seq):
-        raise ValueError(f"labels has {len(labels)} entries for {len(seq)} items")
+    v.labels(labels, "labels", len(seq))
+    if isinstance(ax, (list, tuple, np.ndarray)):
+        if len(ax) != 2:
+            raise ValueError(f"ax must be one Axes or a pair (magnitude, phase), got {len(ax)}")
+        for a in ax:
+            v.axes(a, "ax")
+    else:
+        v.axes(ax, "ax")
+    for it in seq:
+        if isinstance(it, Loop):
+            it._check_pair(src, dst)
     if omega is None:
         first = next((it for it in seq if isinstance(it, Loop)), None)
         w = first.default_omega() if first is not None else np.logspace(-2, 3, 2000)
@@ -90,8 +100,6 @@ def bode_plot(
     if ax is None:
         fig, (ax_mag, ax_ph) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
     elif isinstance(ax, (list, tuple, np.ndarray)):
-        if len(ax) != 2:
-            raise ValueError(f"ax must be one Axes or a pair (magnitude, phase), got {len(ax)}")
         ax_mag, ax_ph = ax
         fig = ax_mag.figure
     else:
@@ -153,8 +161,9 @@ def nyquist_plot(
     loops = _loops_with_labels(loop, labels)
     if ms is not None and ms is not False:
         ms = v.positive(ms, "ms")
-        if ms < 1.0:
-            raise ValueError(f"ms must be >= 1 (a peak sensitivity), got {ms:g}")
+        if not 1.0 <= ms <= 1e12:
+            raise ValueError(f"ms must be in [1, 1e12] (a peak sensitivity), got {ms:g}")
+    v.axes(ax, "ax")
     w = None if omega is None else _omega(omega)
     import matplotlib.pyplot as plt
 
@@ -214,7 +223,10 @@ def spectrum_plot(
     """
     loops = _loops_with_labels(loop, labels)
     from ..spectra import roots
+    from ..spectra.rootfinder import check_region
 
+    region = check_region(region)
+    v.axes(ax, "ax")
     import matplotlib.pyplot as plt
 
     if ax is None:

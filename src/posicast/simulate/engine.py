@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from .. import _validate as v
 from ..core.transfer import TransferFunction
 from ..loops.loop import Loop
 from ..shapers.base import Shaper
@@ -59,6 +60,18 @@ __all__ = ["simulate", "DivergenceWarning"]
 
 INPUTS = ("w", "d", "di", "n")
 
+# Up-front work limits (issue #13): a simulation is refused, with the estimate and the parameter to
+# change, before it allocates anything large.  Costs measured on the reference machine (2 cores):
+# about 350 MB peak per 10^6 samples of t in the exact and sampled modes; 3.6 us and 25 us per internal
+# step for the fine-step (shaper in the loop) and the sample-by-sample (saturation/rate limit) runs.
+MAX_BYTES = 2e9
+MAX_SECONDS = 60.0
+_BYTES_PER_SAMPLE = 350.0
+_BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the fine run and its comparison
+_SECONDS_PER_FINE_STEP = 3.6e-6
+_SECONDS_PER_NONLINEAR_STEP = 25e-6
+MAX_SUBSTEPS = 1_000_000
+
 
 class DivergenceWarning(UserWarning):
     """A simulated loop diverged; the response stops where it did."""
@@ -69,10 +82,7 @@ def _as_signal(x: Any, name: str, n: int) -> np.ndarray:
         return np.zeros(n)
     if np.isscalar(x):
         raise TypeError(f"{name} must be an array on t (or None), got a scalar")
-    try:
-        arr = np.asarray(x, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be an array of real numbers on t") from exc
+    arr = v.strict_real_array(x, name, allow_empty=True)
     if arr.ndim != 1 or arr.size != n:
         raise ValueError(f"{name} must have the length of t ({n}), got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -81,18 +91,44 @@ def _as_signal(x: Any, name: str, n: int) -> np.ndarray:
 
 
 def _check_time(t: Any) -> tuple[np.ndarray, float]:
-    try:
-        t = np.asarray(t, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise TypeError("t must be an array of times") from exc
+    if isinstance(t, (str, bytes)) or np.isscalar(t) or t is None:
+        raise TypeError(f"t must be an array of times, got {type(t).__name__}")
+    n = int(np.size(t)) if isinstance(t, np.ndarray) else None
+    if n is not None:  # before any copy of a large grid
+        _refuse_samples(n)
+    t = v.strict_real_array(t, "t", allow_empty=True)
     if t.ndim != 1 or t.size < 2:
         raise ValueError("t must be a 1-D array of at least 2 times")
-    if not np.all(np.isfinite(t)):
-        raise ValueError("t contains NaN or inf")
+    _refuse_samples(t.size)
     dt = (t[-1] - t[0]) / (t.size - 1)
     if dt <= 0 or not np.allclose(np.diff(t), dt, rtol=1e-9, atol=1e-12 * max(1.0, abs(t[-1]))):
         raise ValueError("t must be uniform and increasing")
     return t, float(dt)
+
+
+def _refuse_samples(n: int) -> None:
+    v.refuse_large(_BYTES_PER_SAMPLE * n, MAX_BYTES, f"simulating {n:.3g} samples", f"use fewer samples in t "
+                   f"(at most about {MAX_BYTES / _BYTES_PER_SAMPLE:.3g}: a coarser step or a shorter time)", "bytes")
+
+
+def _refuse_work(loop: Loop, S: Shaper | None, n: int, dt: float, sample_rate: Any, substeps: int | None,
+                 nonlinear: bool) -> None:
+    """Estimate the internal steps of the run chosen by ``simulate`` and refuse it if too large."""
+    in_loop = S is not None and loop.architecture != "feedforward"
+    if sample_rate is not None:
+        steps, fine = float(n), False  # the controller runs at most once per step of t
+    elif nonlinear or in_loop:
+        sub = substeps if substeps is not None else max(1, int(math.ceil(dt / 1e-3 - 1e-9)))
+        steps, fine = float(n) * sub * (1.0 if nonlinear else 3.0), True  # + the comparison run
+    else:
+        return  # exact continuous mode: covered by the per-sample estimate
+    change = ("use fewer samples in t" + (", fewer substeps" if sample_rate is None else "")
+              + (" or sample_rate (the sampled mode runs at the controller rate)" if sample_rate is None else ""))
+    if fine:
+        v.refuse_large(_BYTES_PER_FINE_STEP * steps, MAX_BYTES, f"the simulation's {steps:.3g} internal steps",
+                       change, "bytes")
+    per = _SECONDS_PER_NONLINEAR_STEP if nonlinear else _SECONDS_PER_FINE_STEP
+    v.refuse_large(per * steps, MAX_SECONDS, f"the simulation's {steps:.3g} internal steps", change, "s")
 
 
 def _shaper_object(loop: Loop) -> Shaper | None:
@@ -663,6 +699,14 @@ def simulate(
     -------
     SimulationResponse
 
+    Raises
+    ------
+    ValueError, TypeError
+        A bad argument (named in the message), or work estimated up front beyond
+        :data:`MAX_BYTES` of memory or :data:`MAX_SECONDS` of computation: the
+        message gives the estimate and what to change (fewer samples, fewer
+        ``substeps``, a ``sample_rate``), before anything large is allocated.
+
     Examples
     --------
     Feedforward ZV shaping of a unit step: the load ``y`` settles without
@@ -681,19 +725,28 @@ def simulate(
         raise TypeError(f"loop must be a posicast Loop (feedforward/control_action/inverse_shaper), got {type(loop).__name__}")
     t, dt = _check_time(t)
     N = t.size
-    sig = {"w": _as_signal(w, "w", N), "d": _as_signal(d, "d", N), "di": _as_signal(di, "di", N),
-           "n": _as_signal(n, "n", N)}
-    if not (isinstance(divergence_limit, (int, float)) and divergence_limit > 1):
+    # every argument is checked, and the work estimated, before anything large is allocated or run
+    if isinstance(divergence_limit, (bool, np.bool_)) or not isinstance(divergence_limit, (int, float, np.integer,
+                                                                                           np.floating)):
+        raise TypeError(f"divergence_limit must be a number > 1, got {type(divergence_limit).__name__}")
+    if not (divergence_limit > 1):
         raise ValueError(f"divergence_limit must be a number > 1, got {divergence_limit!r}")
-    if controller_method not in ("bilinear", "zoh", "foh"):
-        raise ValueError(f"controller_method must be 'bilinear', 'zoh' or 'foh', got {controller_method!r}")
+    v.choice(controller_method, "controller_method", ("bilinear", "zoh", "foh"))
     S = _shaper_object(loop)
     sat = _check_saturation(saturation)
     if rate_limit is not None:
-        if isinstance(rate_limit, bool) or not isinstance(rate_limit, (int, float)) or not rate_limit > 0:
+        if isinstance(rate_limit, bool) or not isinstance(rate_limit, (int, float, np.integer, np.floating)) \
+                or not rate_limit > 0:
             raise ValueError(f"rate_limit must be a positive number of units per second, got {rate_limit!r}")
         rate_limit = float(rate_limit)
+    if substeps is not None:
+        substeps = v.integer_in_range(substeps, "substeps", 1, MAX_SUBSTEPS)
+    if sample_rate is not None:
+        _controller_period(sample_rate, dt, N)
     nonlinear = sat is not None or rate_limit is not None
+    _refuse_work(loop, S, N, dt, sample_rate, substeps, nonlinear)
+    sig = {"w": _as_signal(w, "w", N), "d": _as_signal(d, "d", N), "di": _as_signal(di, "di", N),
+           "n": _as_signal(n, "n", N)}
     accuracy = 0.0
     if nonlinear:
         if sample_rate is None:
@@ -706,7 +759,7 @@ def simulate(
             out = {k: v[::substeps] for k, v in res.items()}
             mode = "continuous (nonlinear, fine step)"
         else:
-            Ts, m = _controller_period(sample_rate, dt)
+            Ts, m = _controller_period(sample_rate, dt, N)
             _check_rates(S, Ts, "sample_rate", float(sample_rate))
             for lp in (loop.F, loop.G):
                 _check_mode_nyquist(lp, float(sample_rate))
@@ -716,7 +769,7 @@ def simulate(
             mode = "sampled"
         return _finish(loop, t, sig, out, mode, sample_rate, accuracy, divergence_limit)
     if sample_rate is not None:
-        Ts, m = _controller_period(sample_rate, dt)
+        Ts, m = _controller_period(sample_rate, dt, N)
         _check_rates(S, Ts, "sample_rate", float(sample_rate))
         for lp in (loop.F, loop.G):
             _check_mode_nyquist(lp, float(sample_rate))
@@ -733,8 +786,6 @@ def simulate(
         else:
             if substeps is None:
                 substeps = max(1, int(math.ceil(dt / 1e-3 - 1e-9)))
-            if not isinstance(substeps, (int, np.integer)) or substeps < 1:
-                raise ValueError(f"substeps must be an integer >= 1, got {substeps!r}")
             h = dt / substeps
             _check_rates(S, 2 * h, "the internal rate (1/t step x substeps)", 1.0 / (2 * h))
             out = _fine(loop, S, sig, h, substeps)
@@ -761,11 +812,14 @@ def _check_saturation(saturation: Any) -> tuple[float, float] | None:
     return lo, hi
 
 
-def _controller_period(sample_rate: Any, dt: float) -> tuple[float, int]:
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not sample_rate > 0 \
-            or not math.isfinite(sample_rate):
+def _controller_period(sample_rate: Any, dt: float, n: int) -> tuple[float, int]:
+    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float, np.integer, np.floating)) \
+            or not sample_rate > 0 or not math.isfinite(sample_rate):
         raise ValueError(f"sample_rate must be a positive number of Hz (or None), got {sample_rate!r}")
     Ts = 1.0 / float(sample_rate)
+    if not Ts <= dt * (n - 1):
+        raise ValueError(f"sample_rate = {float(sample_rate):g} Hz: the controller period {Ts:.6g} s is longer than "
+                         f"the simulated time {dt * (n - 1):.6g} s")
     ratio = Ts / dt
     m = int(round(ratio))
     if m < 1 or abs(ratio - m) > 1e-6 * ratio:

@@ -7,6 +7,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .. import _validate as v
+
 __all__ = ["SimulationResponse"]
 
 _LABELS = {
@@ -62,14 +64,22 @@ class SimulationResponse:
     def outputs(self) -> dict[str, np.ndarray]:
         return {k: v for k, v in self.signals.items() if k not in ("w", "d", "di", "n")}
 
-    def _sig(self, signal: str) -> np.ndarray:
-        if signal not in self.signals:
-            raise ValueError(f"signal must be one of {tuple(self.signals)}, got {signal!r}")
+    def _sig(self, signal: str, name: str = "signal") -> np.ndarray:
+        v.choice(signal, name, tuple(self.signals))
+        if self.time.size == 0:
+            raise ValueError(f"the response is empty (the loop diverged at t = {self.diverged}): no {name} to measure")
         return self.signals[signal]
+
+    def _time(self, value: Any, name: str) -> float:
+        t = v.finite_real(value, name)
+        if t > self.time[-1]:
+            raise ValueError(f"{name} = {t:g} s is beyond the simulated time {self.time[-1]:.4g} s")
+        return t
 
     def residual_vibration(self, after: float, signal: str = "y") -> float:
         """Largest deviation ``|x(t) - x(t_end)|`` for ``t >= after``."""
         x = self._sig(signal)
+        after = self._time(after, "after")
         sel = self.time >= after
         if not np.any(sel):
             raise ValueError(f"after = {after:g} s is beyond the simulated time {self.time[-1]:.4g} s")
@@ -82,6 +92,7 @@ class SimulationResponse:
         ``tol`` is relative to the size of the change.
         """
         x = self._sig(signal)
+        tol = v.positive(tol, "tol")
         t0 = self._start(start)
         sel = self.time >= t0
         seg, ts = x[sel], self.time[sel]
@@ -110,21 +121,39 @@ class SimulationResponse:
 
     def _start(self, start: float | None) -> float:
         if start is not None:
-            return float(start)
+            return self._time(start, "start")
         w = self.signals["w"]
         ch = np.flatnonzero(np.diff(w) != 0)
         return float(self.time[ch[0] + 1]) if ch.size else float(self.time[0])
 
     def plot(self, signals: Sequence[str] = ("w", "z", "y", "u"), axes: Any = None, label: str | None = None) -> Any:
-        """Plot ``signals`` on stacked axes; returns the figure and the axes."""
+        """Plot ``signals`` on stacked axes; returns the figure and the axes.
+
+        ``signals`` are names of :attr:`signals` (those absent from this loop are
+        skipped, at least one must be present); ``axes`` one Axes per drawn signal.
+        """
+        names_in = [signals] if isinstance(signals, str) else v.sequence(signals, "signals", min_len=1)
+        for nm in names_in:
+            if not isinstance(nm, str):
+                raise TypeError(f"signals must be signal names (str), got {type(nm).__name__}")
+        names = [s for s in names_in if s in self.signals]
+        if not names:
+            raise ValueError(f"signals: none of {names_in} is a signal of this response {tuple(self.signals)}")
+        if label is not None and not isinstance(label, str):
+            raise TypeError(f"label must be a string or None, got {type(label).__name__}")
+        if axes is not None:
+            ax_list = [axes] if not isinstance(axes, (list, tuple, np.ndarray)) else list(np.ravel(axes))
+            for a in ax_list:
+                v.axes(a, "axes")
+            if len(ax_list) < len(names):
+                raise ValueError(f"axes has {len(ax_list)} Axes for {len(names)} signals")
         import matplotlib.pyplot as plt
 
-        names = [s for s in signals if s in self.signals]
         if axes is None:
             fig, axes = plt.subplots(len(names), 1, sharex=True, figsize=(8, 1.8 * len(names) + 0.8), squeeze=False)
             axes = axes[:, 0]
         else:
-            axes = np.atleast_1d(axes)
+            axes = np.array(ax_list, dtype=object)
             fig = axes[0].figure
         for ax, nm in zip(axes, names):
             ax.plot(self.time, self.signals[nm], lw=1.0, label=label)

@@ -56,6 +56,8 @@ FRACTIONAL = ("linear", "lagrange3", "round")
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
 _GRID_TOL = 1e-9  # a delay within this fraction of a sample of the grid sits on the grid
+# Most FIR taps a discretisation may produce (80 MB of taps; the filter state is as long).
+MAX_TAPS = 10_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,17 +105,39 @@ class DiscreteShaper:
         return g
 
     def __call__(self, z: Any) -> Any:
-        """The discrete transfer function ``S_d(z)`` at complex ``z`` (``z = exp(s Ts)``)."""
-        z_arr = np.asarray(z, dtype=complex)
-        zi = 1.0 / z_arr
-        out = np.polynomial.polynomial.polyval(zi, self.taps)
-        if self.b is not None and self.a is not None:
-            out = out + np.polynomial.polynomial.polyval(zi, self.b) / np.polynomial.polynomial.polyval(zi, self.a)
-        return out if np.ndim(z) else complex(out)
+        """The discrete transfer function ``S_d(z)`` at complex ``z`` (``z = exp(s Ts)``, nonzero, finite).
+
+        >>> import posicast as pc
+        >>> complex(discretize(pc.design("zv", pc.Mode(10.0, 0.0)), 100.0)(1.0))   # DC gain
+        (1+0j)
+        """
+        z_arr = v.complex_array(z, "z")
+        if np.any(z_arr == 0):
+            raise ValueError("z must be nonzero (S_d has its poles at z = 0)")
+        return self._finish(self._eval(z_arr), z_arr, "z")
+
+    def _eval(self, z_arr: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            zi = 1.0 / z_arr
+            out = np.polynomial.polynomial.polyval(zi, self.taps)
+            if self.b is not None and self.a is not None:
+                out = out + np.polynomial.polynomial.polyval(zi, self.b) / np.polynomial.polynomial.polyval(zi, self.a)
+        return out
+
+    @staticmethod
+    def _finish(out: Any, arg: np.ndarray, name: str) -> Any:
+        if not np.all(np.isfinite(out)):
+            bad = complex(arg.reshape(-1)[int(np.flatnonzero(~np.isfinite(np.reshape(out, -1)))[0])])
+            raise ValueError(f"{name} = {bad:.6g}: S_d overflows the float range there ({name} too far from |z| = 1)")
+        return out if arg.ndim else complex(out)
 
     def at_s(self, s: Any) -> Any:
         """``S_d(exp(s Ts))``: e.g. the residual vibration ``|S_d(p)|`` of a mode pole ``p``."""
-        return self(np.exp(np.asarray(s, dtype=complex) * self.sample_period))
+        s_arr = v.complex_array(s, "s")
+        with np.errstate(all="ignore"):
+            z = np.exp(s_arr * self.sample_period)
+            out = self._eval(z)
+        return self._finish(out, s_arr, "s")
 
     def __repr__(self) -> str:
         iir = f", IIR order {self.a.size - 1}" if self.a is not None else ""
@@ -131,16 +155,19 @@ def _check_shaper(S: Any) -> Shaper:
 
 
 def _check_fractional(fractional: Any) -> str:
-    if fractional not in FRACTIONAL:
-        raise ValueError(f"fractional must be one of {FRACTIONAL}, got {fractional!r}")
-    return str(fractional)
+    return v.choice(fractional, "fractional", FRACTIONAL)
 
 
 def shortest_delay(S: Shaper) -> float:
     """The shaper's first nonzero delay: smallest positive impulse time, part delay or kernel length.
 
     ``inf`` for a shaper without any delay (e.g. the pure IIR notch).
+
+    >>> import posicast as pc
+    >>> round(shortest_delay(pc.design("zv", pc.Mode(10.0, 0.0))), 6)     # pi / 10
+    0.314159
     """
+    S = _check_shaper(S)
     cands = [float(t) for t in S.times if t > 0]
     for p in S.distributed:
         if p.delay > 0:
@@ -149,8 +176,17 @@ def shortest_delay(S: Shaper) -> float:
     return min(cands) if cands else math.inf
 
 
+def _fir_span(S: Shaper) -> float:
+    """Length [s] of the FIR part: the last impulse or the end of the last distributed part."""
+    return max([float(t) for t in S.times] + [float(p.end) for p in S.distributed] + [0.0])
+
+
 def _check_rate(S: Shaper, sample_rate: Any) -> float:
     fs = v.positive(sample_rate, "sample_rate")
+    n_taps = _fir_span(S) * fs + 4
+    v.refuse_large(n_taps, MAX_TAPS, f"discretising the {S.name} shaper ({_fir_span(S):.4g} s long) at "
+                   f"sample_rate = {fs:g} Hz", f"use a lower sample_rate (at most {MAX_TAPS / max(_fir_span(S), 1e-300):.4g} Hz)",
+                   "taps")
     nyq = fs / 2.0
     for m in S.modes:
         if m.freq_hz >= nyq:
@@ -363,10 +399,18 @@ def discretize(S: Shaper, sample_rate: float, fractional: str = "linear") -> Dis
 
 # ---------------------------------------------------------------------- filtering
 def _check_chunk(x: Any, name: str) -> np.ndarray:
+    if isinstance(x, (str, bytes)) or x is None:
+        raise TypeError(f"{name} must be a 1-D array of real numbers, got {type(x).__name__}")
     try:
-        arr = np.asarray(x, dtype=float)
+        arr = np.asarray(x)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a 1-D array of real numbers") from exc
+    if arr.dtype.kind not in "iuf":
+        if arr.dtype.kind == "O":
+            arr = v.strict_real_array(arr, name, allow_empty=True)
+        else:
+            raise TypeError(f"{name} must be a 1-D array of real numbers, got dtype {arr.dtype}")
+    arr = np.asarray(arr, dtype=float)
     if arr.ndim != 1:
         raise ValueError(f"{name} must be 1-D, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -410,6 +454,8 @@ class ShaperFilter:
         fractional: str = "linear",
         initial: float = 0.0,
     ) -> None:
+        _check_fractional(fractional)
+        self._initial = v.finite_real(initial, "initial")
         if isinstance(S, DiscreteShaper):
             fs = v.positive(sample_rate, "sample_rate")
             if not math.isclose(fs, S.sample_rate, rel_tol=1e-12):
@@ -419,7 +465,7 @@ class ShaperFilter:
             self.discrete = S
         else:
             self.discrete = discretize(S, sample_rate, fractional)
-        self._initial = v.real(initial, "initial")
+        self._initial = v.finite_real(initial, "initial")
         self.reset()
 
     @property
@@ -432,7 +478,7 @@ class ShaperFilter:
 
     def reset(self, initial: float | None = None) -> None:
         """Forget the past input (back to steady state at ``initial``, default the constructor's)."""
-        x0 = self._initial if initial is None else v.real(initial, "initial")
+        x0 = self._initial if initial is None else v.finite_real(initial, "initial")
         d = self.discrete
         # FIR state of the transposed direct form: z_i = sum_{k > i} taps[k] x[n - k + i]
         t = d.taps
@@ -459,7 +505,7 @@ class ShaperFilter:
 
     def push(self, sample: float) -> float:
         """Shape one sample."""
-        x = v.real(sample, "sample")  # TypeError / ValueError (NaN, inf) naming "sample"
+        x = v.finite_real(sample, "sample")  # TypeError / ValueError (NaN, inf) naming "sample"
         return float(self.process(np.array([x]))[0])
 
     def __repr__(self) -> str:
@@ -492,4 +538,5 @@ def shape_signal(S: Shaper | DiscreteShaper, x: Any, sample_rate: float, fractio
     >>> float(y[0]), round(float(y[-1]), 12)
     (0.5, 1.0)
     """
-    return ShaperFilter(S, sample_rate, fractional).process(_check_chunk(x, "x"))
+    x = _check_chunk(x, "x")  # the input first: nothing is designed for a bad signal
+    return ShaperFilter(S, sample_rate, fractional).process(x)

@@ -18,7 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _validate as v
 from .design import TuningResult
+
+# Work bounds of sample_check: the brute force evaluates n x n_uniform loop frequency responses (about
+# 10 ns each) and one certified spectrum check per candidate point (about 10 ms each).
+MAX_SAMPLES = 20_000
+MAX_UNIFORM = 1_000_000
+MAX_EVALUATIONS = 5e9
 
 __all__ = ["RegionCheck", "sample_check", "brute_force_sensitivity"]
 
@@ -133,10 +140,13 @@ def sample_check(result: TuningResult, n: int = 2000, seed: int = 0, margin: flo
     Only the ``||S||_inf < Ms`` constraint is checked (the seed 001 case); the
     result must have exactly one unweighted ``'S'`` constraint.
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n must be an integer >= 1, got {n!r}")
-    if not (isinstance(margin, (int, float)) and math.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin must be a finite number >= 0, got {margin!r}")
+    n = v.integer_in_range(n, "n", 1, MAX_SAMPLES)
+    seed = v.integer_in_range(seed, "seed", 0, 2**63 - 1)
+    n_uniform = v.integer_in_range(n_uniform, "n_uniform", 100, MAX_UNIFORM)
+    margin = v.real_in_range(margin, "margin", 0.0, 100.0)
+    v.refuse_large(float(n) * n_uniform, MAX_EVALUATIONS, f"sample_check with n = {n} and n_uniform = {n_uniform} "
+                   f"(n x n_uniform frequency-response evaluations)", "use fewer samples n or a smaller n_uniform",
+                   "evaluations")
     if not isinstance(result, TuningResult):
         raise TypeError(f"result must be a TuningResult, got {type(result).__name__}")
     if len(result.constraints) != 1 or result.constraints[0].kind != "S" or result.constraints[0].weight is not None:

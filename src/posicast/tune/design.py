@@ -28,9 +28,10 @@ import numpy as np
 
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
-from ..core.transfer import TransferFunction, as_transfer
+from ..core.transfer import TransferFunction
 from ..loops import ARCHITECTURES, Loop
 from .constraints import Constraint, sensitivity_constraint
+from . import family as family_mod
 from .family import ControllerFamily, pd_family, pi_family, pid_family
 from .frequency import FrequencyData
 from .regions import LineData, Region, _Components, _Engine, _interval_point, join_lines
@@ -177,34 +178,81 @@ class TuningResult:
 
 # ---------------------------------------------------------------------- helpers
 def _check_structure(structure: Any) -> str:
-    if not isinstance(structure, str):
-        raise TypeError(f"structure must be a string, got {type(structure).__name__}")
-    if structure not in ARCHITECTURES:
-        raise ValueError(f"structure must be one of {ARCHITECTURES}, got {structure!r}")
-    return structure
+    return v.choice(structure, "structure", ARCHITECTURES)
 
 
 def _check_range(r: Any, name: str) -> tuple[float, float] | None:
     if r is None:
         return None
-    try:
-        lo, hi = r
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a (low, high) pair of numbers") from exc
-    lo = v.real(lo, f"{name}[0]")
-    hi = v.real(hi, f"{name}[1]")
+    if isinstance(r, (str, bytes)) or not hasattr(r, "__len__") or len(r) != 2:
+        raise TypeError(f"{name} must be a (low, high) pair of numbers, got {type(r).__name__}")
+    lo, hi = r
+    lo = v.real_in_range(lo, f"{name}[0]", -family_mod.MAX_GAIN, family_mod.MAX_GAIN)
+    hi = v.real_in_range(hi, f"{name}[1]", -family_mod.MAX_GAIN, family_mod.MAX_GAIN)
     if not lo < hi:
         raise ValueError(f"{name} must have low < high, got ({lo:g}, {hi:g})")
     return lo, hi
 
 
+# Coefficients of G, S and F, relative to the largest of their denominator, must lie within these
+# magnitudes: the region computation squares and multiplies them over wide frequency grids.
+_COEFF_RANGE = (1e-100, 1e100)
+# Scan lines: at most MAX_LINES (memory), and pass 2 is refused when its time, estimated from the measured
+# cost of a pass-1 line (5 ms to 100 ms a line, depending on the frequency grid the loop's delays need),
+# would exceed MAX_SECONDS.
+MAX_LINES = 100_001
+MAX_SECONDS = 60.0
+
+
+def _check_scale(tf: TransferFunction, name: str) -> None:
+    """Refuse a block whose coefficients span beyond :data:`_COEFF_RANGE` (rescale time or gain units)."""
+    scale = max(float(np.max(np.abs(tf.den.coeffs))), 1e-300)
+    lo, hi = _COEFF_RANGE
+    for q in (tf.num, tf.den):
+        if q.is_zero:
+            continue
+        mags = np.abs(q.coeffs[q.coeffs != 0]) / scale
+        if mags.size and (mags.min() < lo or mags.max() > hi):
+            raise ValueError(
+                f"{name}: its coefficients span {mags.min():.3g} to {mags.max():.3g} relative to the largest "
+                f"denominator coefficient, beyond [{lo:g}, {hi:g}]; rescale the time or gain units"
+            )
+
+
+# Largest loop delay times the fastest pole/zero magnitude of the delay-free blocks: beyond this the
+# frequency grid cannot resolve the delay's phase over the blocks' dynamics (measured for 1/(s(s+1))
+# e^{-s tau}: tau = 1e3 designs in ~35 s, 1e4 ends in ~35 s with a failed independent verification,
+# 1e5 runs for minutes, 1e6 and beyond return nonsense).
+MAX_DELAY_RATIO = 1e4
+
+
+def _check_delays(blocks: list[tuple[str, TransferFunction]]) -> None:
+    from ..loops import feature_frequencies
+
+    tau = max(tf.max_delay for _, tf in blocks)
+    if tau <= 0:
+        return
+    rates = []
+    for _, tf in blocks:
+        no_delay = TransferFunction(QuasiPolynomial(tf.num.coeffs), QuasiPolynomial(tf.den.coeffs)) \
+            if tf.num.coeffs.shape[0] == 1 and tf.den.coeffs.shape[0] == 1 else None
+        if no_delay is not None:
+            rates += feature_frequencies([no_delay])
+    if not rates:
+        return
+    ratio = tau * max(rates)
+    if ratio > MAX_DELAY_RATIO:
+        name = next(n for n, tf in blocks if tf.max_delay == tau)
+        raise ValueError(
+            f"{name}: its delay {tau:.4g} s is {ratio:.3g} times the fastest time constant of the loop's blocks "
+            f"(1 / {max(rates):.4g} rad/s); the frequency grid cannot resolve more than {MAX_DELAY_RATIO:g}: "
+            f"use a smaller delay or rescale time"
+        )
+
+
 def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[TransferFunction, Any]:
-    if G is None:
-        raise TypeError("G must be a plant (TransferFunction, (num, den), scipy/python-control system), got None")
-    try:
-        Gt = as_transfer(G, "G")
-    except (TypeError, ValueError) as exc:
-        raise type(exc)(str(exc) if str(exc).startswith("G") else f"G: {exc}") from exc
+    Gt = v.system(G, "G")
+    _check_scale(Gt, "G")
     if Gt.num.is_zero:
         raise ValueError("G is identically zero: nothing to control")
     if Gt.num.degree > Gt.den.degree:
@@ -213,7 +261,8 @@ def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[Transf
             f"denominator degree {Gt.den.degree}"
         )
     if S is not None:
-        St = as_transfer(S, "S")
+        St = v.system(S, "S")
+        _check_scale(St, "S")
         if St.num.is_zero:
             raise ValueError("S is identically zero: no signal passes the shaper")
         if St.num.degree > St.den.degree:
@@ -226,10 +275,12 @@ def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[Transf
         if structure == "feedforward":
             _check_open_loop_stable(St, "S", "in the feedforward structure it filters w outside the loop")
     if F is not None:
-        Ft = as_transfer(F, "F")
+        Ft = v.system(F, "F")
+        _check_scale(Ft, "F")
         if Ft.num.degree > Ft.den.degree:
             raise ValueError("F must be proper (the flexible load is a physical system)")
         _check_open_loop_stable(Ft, "F", "it acts on the plant output outside the loop")
+    _check_delays([("G", Gt)] + ([("S", v.system(S, "S"))] if S is not None else []))
     return Gt, S
 
 
@@ -354,13 +405,10 @@ def tune(
     structure = _check_structure(structure)
     if not isinstance(family, ControllerFamily):
         raise TypeError(f"family must be a ControllerFamily, got {type(family).__name__}")
-    cons = tuple(constraints)
+    cons = _constraint_tuple(constraints)
     if not cons:
         raise ValueError("no constraint: give ms (e.g. ms=2.0) or constraints=[Constraint(...)]")
-    for c in cons:
-        if not isinstance(c, Constraint):
-            raise TypeError(f"constraints must be posicast.tune.Constraint objects, got {type(c).__name__}")
-    n_lines = v.integer(n_lines, "n_lines", 11)
+    n_lines = v.integer_in_range(n_lines, "n_lines", 11, MAX_LINES)
     Gt, S = _check_blocks(G, S, structure, F)
     xr = _check_range(x_range, f"{family.x}_range")
     yr = _check_range(y_range, f"{family.y}_range")
@@ -404,6 +452,9 @@ def tune(
     region = _build_region(engine, family, xs1, yr)
     best = region.best()
     timings["pass 1"] = time.perf_counter() - t0
+    per_line = timings["pass 1"] / max(xs1.size, 1)
+    v.refuse_large(per_line * n_lines, MAX_SECONDS, f"scanning n_lines = {n_lines} lines (measured {per_line * 1e3:.3g} ms "
+                   f"a line for this loop)", f"use n_lines <= {max(11, int(MAX_SECONDS / per_line))}", "s")
 
     # ---- pass 2: the best component at full resolution, between the sweep lines around it
     t0 = time.perf_counter()
@@ -838,10 +889,21 @@ def _finish(tuner: _Tuner, engine: _Engine, region: Region, kx: float, ky: float
 
 
 # ---------------------------------------------------------------------- public entry points
-def _constraints(ms: Any, constraints: Any) -> tuple[Constraint, ...]:
-    extra = tuple(constraints) if constraints is not None else ()
+def _constraint_tuple(constraints: Any) -> tuple[Constraint, ...]:
+    """None, one Constraint or a sequence of them, as a tuple (TypeError naming ``constraints``)."""
+    if constraints is None:
+        return ()
     if isinstance(constraints, Constraint):
-        extra = (constraints,)
+        return (constraints,)
+    out = tuple(v.sequence(constraints, "constraints"))
+    for c in out:
+        if not isinstance(c, Constraint):
+            raise TypeError(f"constraints must be posicast.tune.Constraint objects, got {type(c).__name__}")
+    return out
+
+
+def _constraints(ms: Any, constraints: Any) -> tuple[Constraint, ...]:
+    extra = _constraint_tuple(constraints)
     base = () if ms is None else (sensitivity_constraint(ms),)
     return base + extra
 
@@ -895,7 +957,10 @@ def tune_pd(
     Raises
     ------
     ValueError, TypeError
-        Improper plant or loop gain, ``ms <= 0``, a bad range or structure.
+        Improper plant or loop gain, ``ms`` outside ``[0.001, 100]``, a bad range or
+        structure, coefficients or delays beyond what the frequency grid resolves, or
+        ``n_lines`` whose scan would exceed :data:`MAX_SECONDS` (estimated from the
+        measured cost of the first pass; the message says which ``n_lines`` fits).
 
     Examples
     --------

@@ -36,6 +36,10 @@ from ..core.transfer import TransferFunction
 __all__ = ["ControllerFamily", "pi_family", "pd_family", "pid_family", "GAIN_NAMES"]
 
 GAIN_NAMES = ("kp", "ki", "kd")
+# Derivative filter time constants accepted [s] (0, or within this range: 1/Tf stays far inside the floats).
+FILTER_RANGE = (1e-12, 1e12)
+# Largest fixed gain magnitude accepted (the scanned gains go 10^4 times beyond the natural scale).
+MAX_GAIN = 1e12
 
 
 def _pad(*polys: np.ndarray) -> list[np.ndarray]:
@@ -83,8 +87,30 @@ class ControllerFamily:
     derivative_filter: float = 0.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "fixed", MappingProxyType(dict(self.fixed)))
-        dC, n0, nx, ny = _pad(*(np.asarray(p, dtype=float) for p in (self.dC, self.n0, self.nx, self.ny)))
+        for name in ("name", "x", "y"):
+            if not isinstance(getattr(self, name), str):
+                raise TypeError(f"{name} must be a string, got {type(getattr(self, name)).__name__}")
+        for name in ("x", "y"):
+            v.choice(getattr(self, name), name, GAIN_NAMES)
+        if self.x == self.y:
+            raise ValueError(f"x and y must be different gains, got {self.x!r} twice")
+        if not isinstance(self.fixed, Mapping):
+            raise TypeError(f"fixed must be a mapping of gain names to values, got {type(self.fixed).__name__}")
+        fixed = {}
+        for k, val in self.fixed.items():
+            v.choice(k, "fixed gain", GAIN_NAMES)
+            fixed[k] = v.real_in_range(val, f"fixed[{k!r}]", -MAX_GAIN, MAX_GAIN)
+        object.__setattr__(self, "fixed", MappingProxyType(fixed))
+        object.__setattr__(self, "derivative_filter", _filter(self.derivative_filter))
+        polys = []
+        for name in ("dC", "n0", "nx", "ny"):
+            arr = np.atleast_1d(v.strict_real_array(getattr(self, name), name))
+            if arr.ndim != 1:
+                raise ValueError(f"{name} must be a 1-D polynomial (descending powers), got shape {arr.shape}")
+            polys.append(arr)
+        if not np.any(polys[0]):
+            raise ValueError("dC must not be identically zero")
+        dC, n0, nx, ny = _pad(*polys)
         for arr in (dC, n0, nx, ny):
             arr.flags.writeable = False
         object.__setattr__(self, "dC", dC)
@@ -135,9 +161,12 @@ class ControllerFamily:
 def _filter(tf: Any) -> float:
     if tf is None:
         return 0.0
-    val = v.real(tf, "derivative_filter")
+    val = v.finite_real(tf, "derivative_filter")
     if val < 0:
         raise ValueError(f"derivative_filter must be >= 0 (a time constant in s), got {val:g}")
+    lo, hi = FILTER_RANGE
+    if val != 0 and not lo <= val <= hi:
+        raise ValueError(f"derivative_filter must be 0 or in [{lo:g}, {hi:g}] s, got {val:g}")
     return val
 
 
@@ -167,17 +196,19 @@ def pid_family(fixed: Mapping[str, Any], maximize: str | None = None,
     derivative_filter : float, optional
         ``Tf >= 0``.
     """
-    if not isinstance(fixed, Mapping) or len(fixed) != 1:
+    if not isinstance(fixed, Mapping):
+        raise TypeError(f"fixed must be a mapping with exactly one of 'kp', 'ki', 'kd', e.g. {{'kd': 0.5}}; "
+                        f"got {type(fixed).__name__}")
+    if len(fixed) != 1:
         raise ValueError("fixed must be a mapping with exactly one of 'kp', 'ki', 'kd', e.g. {'kd': 0.5}")
     (name, value), = fixed.items()
-    if name not in GAIN_NAMES:
+    if not isinstance(name, str) or name not in GAIN_NAMES:
         raise ValueError(f"fixed gain must be one of {GAIN_NAMES}, got {name!r}")
-    value = v.real(value, f"fixed[{name!r}]")
+    value = v.real_in_range(value, f"fixed[{name!r}]", -MAX_GAIN, MAX_GAIN)
     free = [g for g in GAIN_NAMES if g != name]
     if maximize is None:
         maximize = "ki" if "ki" in free else "kp"
-    if maximize not in free:
-        raise ValueError(f"maximize must be one of the free gains {tuple(free)}, got {maximize!r}")
+    v.choice(maximize, "maximize", free)
     Tf = _filter(derivative_filter)
     scan = free[0] if free[1] == maximize else free[1]
     if name == "ki" and value == 0.0:

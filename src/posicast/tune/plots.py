@@ -10,6 +10,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .. import _validate as v
 from .design import TuningResult
 from .regions import Region
 
@@ -20,6 +21,7 @@ _NAMES = {"kp": "$K_p$", "ki": "$K_i$", "kd": "$K_d$"}
 
 
 def _axes(ax: Any, size: tuple[float, float] = (6.5, 5)) -> tuple[Any, Any]:
+    v.axes(ax, "ax")
     import matplotlib.pyplot as plt
 
     if ax is None:
@@ -43,7 +45,7 @@ def _as_region(item: Any) -> tuple[Region, TuningResult | None]:
         return item.region, item
     if isinstance(item, Region):
         return item, None
-    raise TypeError(f"expected a TuningResult or a Region, got {type(item).__name__}")
+    raise TypeError(f"item must be a TuningResult or a Region, got {type(item).__name__}")
 
 
 def region_plot(item: TuningResult | Region, ax: Any = None, *, stability: bool = True,
@@ -69,6 +71,8 @@ def region_plot(item: TuningResult | Region, ax: Any = None, *, stability: bool 
     fig, ax
     """
     region, result = _as_region(item)
+    if label is not None and not isinstance(label, str):
+        raise TypeError(f"label must be a string or None, got {type(label).__name__}")
     fig, ax = _axes(ax)
     extra = [result.point[1]] if result is not None and result.point is not None else []
     y = _y_window(region, extra)
@@ -120,14 +124,13 @@ def regions_plot(items: Sequence[TuningResult], labels: Sequence[str] | None = N
     -------
     fig, ax
     """
-    items = list(items)
-    if not items:
-        raise ValueError("items must not be empty")
+    items = v.sequence(items, "items", min_len=1)
     for it in items:
         if not isinstance(it, TuningResult):
             raise TypeError(f"items must be TuningResult objects, got {type(it).__name__}")
-    if labels is not None and len(labels) != len(items):
-        raise ValueError(f"labels has {len(labels)} entries for {len(items)} designs")
+    v.labels(labels, "labels", len(items))
+    if title is not None and not isinstance(title, str):
+        raise TypeError(f"title must be a string or None, got {type(title).__name__}")
     planes = {(it.family.x, it.family.y) for it in items}
     if len(planes) != 1:
         raise ValueError(f"the designs lie in different gain planes: {sorted(planes)}")
@@ -164,10 +167,17 @@ def tuning_nyquist_plot(items: TuningResult | Sequence[TuningResult], ax: Any = 
     """
     from ..loops.plots import nyquist_plot
 
-    seq = [items] if isinstance(items, TuningResult) else list(items)
+    seq = [items] if isinstance(items, TuningResult) else v.sequence(items, "items", min_len=1)
+    for it in seq:
+        if not isinstance(it, TuningResult):
+            raise TypeError(f"items must be TuningResult objects, got {type(it).__name__}")
+    v.axes(ax, "ax")
+    if omega is not None:
+        omega = v.strict_real_array(omega, "omega")
     loops = [it.loop for it in seq if it.loop is not None]
     if not loops:
-        raise ValueError("no design to draw: every region is empty")
+        raise ValueError("items: no design to draw, every region is empty")
+    v.labels(labels, "labels", len(loops))
     ms = next((c.gamma for c in seq[0].constraints if c.kind == "S" and c.weight is None), None)
     if omega is None:
         fd = seq[0].region._engine.fd

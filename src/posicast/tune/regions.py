@@ -43,6 +43,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from ..loops import Loop
 from .family import ControllerFamily
@@ -1153,8 +1154,26 @@ class Region:
         ln = self._lines[i]
         return self._label(int(ln.comp[j]), ln.x, y)
 
+    def _line(self, i: Any) -> int:
+        """``i`` as a line index (TypeError/ValueError naming ``i``)."""
+        if isinstance(i, (bool, np.bool_)) or not isinstance(i, (int, np.integer)):
+            raise TypeError(f"i must be a line index (int), got {type(i).__name__}")
+        if not 0 <= i < len(self._lines):
+            raise ValueError(f"i must be a line index in [0, {len(self._lines) - 1}], got {i}")
+        return int(i)
+
+    def _constraint_index(self, constraint: Any) -> int | None:
+        if constraint is None:
+            return None
+        if isinstance(constraint, (bool, np.bool_)) or not isinstance(constraint, (int, np.integer)):
+            raise TypeError(f"constraint must be None or a constraint index (int), got {type(constraint).__name__}")
+        if not 0 <= constraint < len(self.constraints):
+            raise ValueError(f"constraint must be an index in [0, {len(self.constraints) - 1}], got {constraint}")
+        return int(constraint)
+
     def admissible_intervals(self, i: int) -> np.ndarray:
         """Admissible ``ky`` intervals on line ``i`` (H-infinity and stable), clipped to ``y_range``."""
+        i = self._line(i)
         if self._admissible is None:
             self._admissible = [None] * len(self._lines)  # type: ignore[list-item]
         cached = self._admissible[i]
@@ -1167,7 +1186,7 @@ class Region:
 
     def pieces(self, i: int) -> list[tuple[float, float, int]]:
         """H-infinity-admissible pieces of line ``i`` within ``y_range``, split at the breaks: ``(lo, hi, segment)``."""
-        ln = self._lines[i]
+        ln = self._lines[self._line(i)]
         out = []
         for lo, hi in _intersect(ln.hinf, np.array([self.y_range])):
             inner = ln.breaks[(ln.breaks > lo) & (ln.breaks < hi)]
@@ -1199,7 +1218,8 @@ class Region:
 
     def hinf_intervals(self, i: int, constraint: int | None = None) -> np.ndarray:
         """H-infinity-admissible ``ky`` intervals on line ``i`` (all constraints, or one), stability ignored."""
-        ln = self._lines[i]
+        ln = self._lines[self._line(i)]
+        constraint = self._constraint_index(constraint)
         return ln.hinf if constraint is None else ln.per_constraint[constraint]
 
     def default_window(self) -> tuple[float, float]:
@@ -1221,7 +1241,11 @@ class Region:
         window keeps the checks to gains of interest (far out, a delay loop has
         thousands of roots in the search region).
         """
-        ln = self._lines[i]
+        ln = self._lines[self._line(i)]
+        if window is not None:
+            if isinstance(window, (str, bytes)) or not hasattr(window, "__len__") or len(window) != 2:
+                raise TypeError(f"window must be a (low, high) pair or None, got {type(window).__name__}")
+            window = (v.finite_real(window[0], "window[0]"), v.finite_real(window[1], "window[1]"))
         w_lo, w_hi = self.default_window() if window is None else window
         # beyond the engine's ky window the segments are not D-decomposition cells (breaks were dropped)
         w_lo, w_hi = max(w_lo, self._engine.y_window[0]), min(w_hi, self._engine.y_window[1])
@@ -1240,6 +1264,7 @@ class Region:
 
     def top(self, i: int) -> float:
         """Largest admissible ``ky`` on line ``i`` (``-inf`` if none)."""
+        i = self._line(i)
         iv = self.admissible_intervals(i)
         return float(iv[:, 1].max()) if iv.size else -_INF
 
@@ -1250,9 +1275,12 @@ class Region:
         ``ky``: a misclassified point is at most half a line spacing (in ``kx``)
         from the true boundary.
         """
-        kx = np.asarray(kx, dtype=float)
-        ky = np.asarray(ky, dtype=float)
-        kx, ky = np.broadcast_arrays(kx, ky)
+        kx = v.strict_real_array(kx, "kx", allow_empty=True)
+        ky = v.strict_real_array(ky, "ky", allow_empty=True)
+        try:
+            kx, ky = np.broadcast_arrays(kx, ky)
+        except ValueError:
+            raise ValueError(f"kx and ky must broadcast together, got shapes {kx.shape} and {ky.shape}") from None
         if self.x.size == 0:  # no line scanned (a loop refused before the scan): nothing is admissible
             return np.zeros(kx.shape, dtype=bool)
         idx = np.clip(np.searchsorted(self.x, kx), 1, max(self.x.size - 1, 1))
@@ -1299,6 +1327,7 @@ class Region:
 
     def _intervals(self, i: int, what: str, constraint: int | None, y: np.ndarray) -> np.ndarray:
         """Line ``i``'s ``'admissible'``, ``'hinf'`` or ``'stable'`` intervals (stable: within ``y``'s span)."""
+        v.choice(what, "what", ("admissible", "hinf", "stable"))
         if what == "admissible":
             return self.admissible_intervals(i)
         if what == "hinf":
@@ -1307,9 +1336,16 @@ class Region:
             return self.stable_intervals(i, (float(y.min()), float(y.max())) if y.size else None)
         raise ValueError(f"what must be 'admissible', 'hinf' or 'stable', got {what!r}")
 
+    def _grid_args(self, y: Any, what: Any, constraint: Any) -> tuple[np.ndarray, int | None]:
+        y = v.strict_real_array(y, "y", allow_empty=True)
+        if y.ndim != 1:
+            raise ValueError(f"y must be a 1-D array of gains, got shape {y.shape}")
+        v.choice(what, "what", ("admissible", "hinf", "stable"))
+        return y, self._constraint_index(constraint)
+
     def mask(self, y: np.ndarray, what: str = "admissible", constraint: int | None = None) -> np.ndarray:
         """Membership on the grid ``lines x y``: ``'admissible'``, ``'hinf'`` or ``'stable'``."""
-        y = np.asarray(y, dtype=float)
+        y, constraint = self._grid_args(y, what, constraint)
         out = np.zeros((self.x.size, y.size), dtype=bool)
         for i in range(self.x.size):
             iv = self._intervals(i, what, constraint, y)
@@ -1324,7 +1360,7 @@ class Region:
         straight segments: a smooth drawing of the region instead of the
         staircase of :meth:`mask`.
         """
-        y = np.asarray(y, dtype=float)
+        y, constraint = self._grid_args(y, what, constraint)
         span = float(np.ptp(y)) if y.size > 1 else 1.0
         out = np.full((self.x.size, y.size), -span)
         for i in range(self.x.size):
