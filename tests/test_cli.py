@@ -2,6 +2,7 @@
 
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -107,3 +108,92 @@ def test_tune_errors_are_one_line(argv, word, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert word in err and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------- issue #13: files, order of checks, one line
+def _one_line_error(capsys, word):
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("posicast: error:"), err
+    assert word in err, err
+    return err
+
+
+@pytest.mark.parametrize("name", ["fig", "fig.txt", ".png", "fig.png/"])
+def test_output_path_without_an_image_extension_is_refused_and_nothing_written(name, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    argv = ["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", name]
+    assert main(argv) == 2
+    err = _one_line_error(capsys, "--out")
+    assert repr(name) in err  # the user's path, not a temporary file
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_output_directory_or_missing_parent_is_refused(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "d.png").mkdir()
+    assert main(["tune", "--num", "1", "--den", "1 2 1", "--controller", "pi", "--plot", "d.png"]) == 2
+    _one_line_error(capsys, "is a directory")
+    assert main(["tune", "--num", "1", "--den", "1 2 1", "--plot", str(tmp_path / "no" / "f.png")]) == 2
+    _one_line_error(capsys, "does not exist")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.png"]
+
+
+def test_bad_tolerance_is_refused_before_the_figure_is_written(tmp_path, capsys):
+    out = tmp_path / "fig.png"
+    for tol in ("nan", "0", "1", "-0.1", "inf"):
+        assert main(["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--tol", tol, "--out", str(out)]) == 2
+        _one_line_error(capsys, "--tol")
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("ext, magic", [(".pdf", b"%PDF"), (".svg", b"<svg"), (".PNG", b"\x89PNG")])
+def test_figure_is_written_at_the_exact_path_in_the_extensions_format(ext, magic, tmp_path, capsys):
+    out = tmp_path / f"fig{ext}"
+    assert main(["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", str(out)]) == 0
+    assert magic in out.read_bytes()[:400]
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]  # no temporary file left
+
+
+def test_unwritable_target_names_the_users_path(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):  # running as root: permissions are not enforced
+            pytest.skip("directory permissions are not enforced for this user")
+        assert main(["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", str(ro / "f.png")]) == 2
+        err = _one_line_error(capsys, "not writable")
+        assert str(ro / "f.png") in err and ".part" not in err
+    finally:
+        ro.chmod(0o700)
+
+
+def test_tune_ms_beyond_the_float_range_is_a_named_error(capsys):
+    assert main(["tune", "--case", "gantry_crane", "--ms", "1e300"]) == 2
+    _one_line_error(capsys, "ms must be in")
+
+
+def test_unexpected_exception_is_one_line_with_status_70(monkeypatch, capsys):
+    import importlib
+
+    shaper_design = importlib.import_module("posicast.shapers.design")
+
+    def broken(*args, **kwargs):
+        raise OverflowError("math range error")
+
+    monkeypatch.setattr(shaper_design, "design", broken)
+    assert main(["design", "zv", "--omega", "1", "--zeta", "0.1"]) == 70
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("posicast: internal error: OverflowError: math range error")
+    assert "POSICAST_TRACEBACK=1" in err
+
+
+def test_written_figure_has_the_usual_file_mode(tmp_path):
+    """The atomic write goes through a private temporary file; the result gets 0666 less the umask."""
+    mask = os.umask(0o022)
+    try:
+        out = tmp_path / "fig.png"
+        assert main(["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", str(out)]) == 0
+        assert out.stat().st_mode & 0o777 == 0o644
+    finally:
+        os.umask(mask)

@@ -20,7 +20,7 @@ from .analysis import (
 )
 from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
 from .loops import Loop, control_action, feedforward, inverse_shaper
-from .identify import Calibration, Identification, Interval, calibrate, identify
+from .identify import Calibration, Identification, Interval, NoModeFound, calibrate, identify
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
 from . import cases
@@ -42,6 +42,7 @@ __all__ = [
     "Identification",
     "Interval",
     "Calibration",
+    "NoModeFound",
     "simulate",
     "SimulationResponse",
     "ShaperFilter",

@@ -48,6 +48,12 @@ def integer(value: Any, name: str, minimum: int) -> int:
 
 def real_array(value: Any, name: str) -> np.ndarray:
     try:
+        is_complex = np.iscomplexobj(value)
+    except (TypeError, ValueError) as exc:  # ragged nesting
+        raise TypeError(f"{name} must be an array of real numbers (rectangular)") from exc
+    if is_complex:  # np.asarray(..., float) would drop the imaginary part with only a warning
+        raise TypeError(f"{name} must be an array of real numbers, got complex numbers")
+    try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be an array of real numbers") from exc

@@ -36,6 +36,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from . import _validate as v
 from .core.transfer import TransferFunction, as_transfer
 from .loops import ARCHITECTURES, Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
@@ -96,6 +97,21 @@ class Case:
     extras: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        for name in ("name", "source", "notes"):
+            if not isinstance(getattr(self, name), str):
+                raise TypeError(f"{name} must be a str, got {type(getattr(self, name)).__name__}")
+        for name in ("G", "F"):
+            if not isinstance(getattr(self, name), TransferFunction):
+                raise TypeError(f"{name} must be a posicast TransferFunction (posicast.as_transfer), got "
+                                f"{type(getattr(self, name)).__name__}")
+        if self.C is not None and not isinstance(self.C, TransferFunction):
+            raise TypeError(f"C must be a posicast TransferFunction or None, got {type(self.C).__name__}")
+        if not isinstance(self.mode, Mode):
+            raise TypeError(f"mode must be a posicast Mode, got {type(self.mode).__name__}")
+        if self.sample_rate is not None:
+            object.__setattr__(self, "sample_rate", v.positive(self.sample_rate, "sample_rate"))
+        if not isinstance(self.extras, Mapping):
+            raise TypeError(f"extras must be a mapping, got {type(self.extras).__name__}")
         object.__setattr__(self, "extras", MappingProxyType(dict(self.extras)))
 
     def loop(self, architecture: str, S: Any = None, C: Any = None) -> Loop:
@@ -170,7 +186,11 @@ def modes_of(system: Any, name: str = "system") -> tuple[Mode, ...]:
     (Mode(omega=10.0, zeta=0.03),)
     """
     tf = as_transfer(system, name)
-    r = np.roots(tf.to_scipy().den)
+    with np.errstate(over="raise", invalid="raise"):
+        try:
+            r = np.roots(tf.to_scipy().den)
+        except FloatingPointError:
+            raise ValueError(f"{name}: its denominator's roots overflow; rescale the coefficients") from None
     pairs = r[(r.imag > 1e-12 * np.maximum(1.0, np.abs(r))) & (r.real <= 0)]  # stable complex pairs
     modes = [Mode(float(abs(p)), float(-p.real / abs(p))) for p in pairs]
     return tuple(sorted(modes, key=lambda m: (m.zeta, m.omega)))

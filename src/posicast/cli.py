@@ -1,8 +1,22 @@
 """Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``.
 
-Every error (bad argument, out-of-range value) prints one line to stderr and
-exits with status 2; no traceback.  ``posicast tune`` exits with status 1 when
-it ran but found no controller (an empty or unbounded region, printed as such).
+``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
+(one line on stderr, no configuration printed).  Every error (bad argument,
+out-of-range value, work too large, unreadable or unwritable file) prints one
+line to stderr and exits with status 2; no traceback.  ``posicast tune`` exits
+with status 1 when it ran but found no controller (an empty or unbounded
+region, printed as such).  An unexpected
+exception (a bug) also prints one line, ``posicast: internal error: ...`` with
+where it was raised, and exits with status 70; set ``POSICAST_TRACEBACK=1`` to
+see the traceback.
+
+Figures (``--out``, ``--plot``, ``--nyquist``) are written at exactly the path
+given, whose extension chooses the format (``.png``, ``.pdf``, ``.svg``, ``.eps``,
+``.ps``, ``.jpg``, ``.jpeg``, ``.tif``, ``.tiff``): a path without one of these is
+refused, as is a directory or a missing parent directory.  Every argument and
+output path is checked before any computation, the file is written only after
+everything else succeeded, atomically (a temporary file in the same directory,
+renamed), and an error leaves no file behind.
 """
 
 from __future__ import annotations
@@ -63,21 +77,33 @@ def _build_parser() -> _Parser:
     i = sub.add_parser("identify", help="identify lightly damped modes in a CSV or Klipper file")
     i.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
     i.add_argument("--input", help="input column (omit for output-only data)")
-    i.add_argument("--output", help="output column (Klipper logs: see --axis)")
-    i.add_argument("--axis", default="auto", choices=("auto", "x", "y", "z", "all"), help="Klipper log axis")
+    i.add_argument("--output", help="output column (not for Klipper files)")
+    i.add_argument("--axis", choices=("x", "y", "z"), help="tested axis of a Klipper file whose name does not say")
     i.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
     i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
     i.add_argument("--json", action="store_true", help="machine-readable output")
 
-    c = sub.add_parser("calibrate", help="identify modes and recommend a shaper with firmware config lines")
-    c.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
-    c.add_argument("--input", help="input column (omit for output-only data)")
-    c.add_argument("--output", help="output column")
-    c.add_argument("--axis", default="auto", choices=("auto", "x", "y", "z", "all"), help="Klipper log axis")
+    c = sub.add_parser("calibrate", help="identify modes in resonance tests and recommend firmware settings")
+    c.add_argument("files", nargs="+", metavar="FILE",
+                   help="Klipper raw logs or PSD files (resonances_*, calibration_data_*), or CSV with --input/--output")
+    c.add_argument("--firmware", default="klipper",
+                   help="klipper, reprapfirmware, marlin, prusa, a comma-separated list, or all (default klipper)")
+    c.add_argument("--klipper-version", default="v0.13", choices=("v0.13", "master", "kalico"),
+                   help="the Klipper whose shapers and rules to use (default v0.13)")
+    c.add_argument("--axis", choices=("x", "y", "z"), help="tested axis when the file names do not say it")
+    c.add_argument("--at", help="one label per file for a frequency schedule: mass=0,100,200 (g) or z=0,50,100 (mm)")
+    c.add_argument("--vtol", type=float, default=0.05, help="worst-case vibration target, in (0, 1) (default 0.05)")
+    c.add_argument("--margin", type=float, default=0.05, help="frequency drift of the modes, in [0, 0.5) (default 0.05)")
+    c.add_argument("--max-smoothing", type=float, help="upper bound on Klipper's smoothing [mm]")
+    c.add_argument("--slack", type=float, default=0.01,
+                   help="remaining vibration (the firmware tool's measure) that may be traded for less smoothing "
+                        "against the tool's own pick, in [0, 0.2] (default 0.01)")
+    c.add_argument("--input", help="input column (input/output CSV)")
+    c.add_argument("--output", help="output column (input/output CSV)")
     c.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
-    c.add_argument("--vtol", type=float, default=0.05, help="tolerable worst-case vibration (default 0.05)")
-    c.add_argument("--margin", type=float, default=0.05, help="extra frequency uncertainty (default 0.05)")
-    c.add_argument("--plot", help="write the calibration plot (png, pdf, svg)")
+    c.add_argument("--json", action="store_true", help="machine-readable output")
+    c.add_argument("--plot", help="write the calibration figure (png, pdf, svg)")
+    c.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
 
     t = sub.add_parser("tune", help="robust PD/PI for a loop with a shaper (H-infinity regions, seed 001)")
     src = t.add_mutually_exclusive_group(required=True)
@@ -112,11 +138,36 @@ def _coeffs(text: str, name: str) -> list[float]:
 
 
 def _tune_cmd(args: argparse.Namespace) -> int:
-    from .core.transfer import TransferFunction, delay
+    from . import _validate as v
+    from .core.transfer import delay
     from .modes import Mode
     from .shapers.design import design
     from .tune import tune_pd, tune_pi
+    from .tune.constraints import sensitivity_constraint
 
+    # every option first, before any design work
+    sensitivity_constraint(args.ms)  # ms range (ValueError naming ms)
+    if args.derivative_filter is not None:
+        from .tune.family import pd_family
+
+        try:
+            pd_family(args.derivative_filter)  # 0 or a time constant in the tuner's range
+        except ValueError as exc:
+            raise ValueError(f"--derivative-filter: {exc}") from None
+    for g in ("kp", "ki", "kd"):
+        r = getattr(args, f"{g}_range")
+        if r is not None:
+            lo, hi = (v.real_in_range(x, f"--{g}-range", -1e12, 1e12) for x in r)
+            if not lo < hi:
+                raise ValueError(f"--{g}-range: {g}_range must have low < high, got ({lo:g}, {hi:g})")
+    if args.controller == "pd" and args.ki_range is not None:
+        raise ValueError("--ki-range does not apply to a pd controller")
+    if args.controller == "pi" and (args.kd_range is not None or args.derivative_filter is not None):
+        raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
+    if not (math.isfinite(args.delay) and args.delay >= 0):
+        raise ValueError(f"--delay must be a finite number >= 0 [s], got {args.delay:g}")
+    if (args.omega is None) != (args.zeta is None):
+        raise ValueError("--omega and --zeta go together")
     F = None
     mode = None
     if args.case is not None:
@@ -124,21 +175,17 @@ def _tune_cmd(args: argparse.Namespace) -> int:
 
         if args.case not in ALL:
             raise ValueError(f"--case must be one of {', '.join(ALL)}; got {args.case!r}")
-        case = ALL[args.case]
-        G, F, mode = case.G, case.F, case.mode
         if args.den is not None:
             raise ValueError("--den goes with --num, not with --case")
+        case = ALL[args.case]
+        G, F, mode = case.G, case.F, case.mode
     else:
         if args.den is None:
             raise ValueError("--den is required with --num")
-        G = TransferFunction.from_poly(_coeffs(args.num, "--num"), _coeffs(args.den, "--den"))
+        G = v.system((_coeffs(args.num, "--num"), _coeffs(args.den, "--den")), "the plant --num/--den")
     if args.delay != 0.0:
-        if not (math.isfinite(args.delay) and args.delay > 0):
-            raise ValueError(f"--delay must be a finite number >= 0 [s], got {args.delay:g}")
         G = G * delay(args.delay)
-    if args.omega is not None or args.zeta is not None:
-        if args.omega is None or args.zeta is None:
-            raise ValueError("--omega and --zeta go together")
+    if args.omega is not None:
         mode = Mode(args.omega, args.zeta)
     S = None
     if args.shaper is not None:
@@ -147,13 +194,9 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         S = design(args.shaper.lower(), mode)
     common = {"F": F}
     if args.controller == "pd":
-        if args.ki_range is not None:
-            raise ValueError("--ki-range does not apply to a pd controller")
         r = tune_pd(G, S, args.structure, ms=args.ms, derivative_filter=args.derivative_filter,
                     kp_range=args.kp_range, kd_range=args.kd_range, **common)
     else:
-        if args.kd_range is not None or args.derivative_filter is not None:
-            raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
         r = tune_pi(G, S, args.structure, ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, **common)
     figures = []
     if (args.plot or args.nyquist) and not r.empty:
@@ -161,11 +204,11 @@ def _tune_cmd(args: argparse.Namespace) -> int:
 
         matplotlib.use("Agg")
         if args.plot:
-            figures.append((r.plot()[0], args.plot))
+            figures.append((r.plot()[0], args.plot, "--plot"))
         if args.nyquist and r.loop is not None:
-            figures.append((r.nyquist_plot()[0], args.nyquist))
-    for fig, out in figures:  # everything computed: only now write
-        _save_atomic(fig, out)
+            figures.append((r.nyquist_plot()[0], args.nyquist, "--nyquist"))
+    for fig, out, opt in figures:  # everything computed: only now write
+        _save_atomic(fig, out, opt)
     if args.json:
         ext = r.region.extent()
 
@@ -182,7 +225,7 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         }, indent=2))
     else:
         print(r.summary())
-        for _, out in figures:
+        for _, out, _opt in figures:
             print(f"wrote {out}")
     return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
 
@@ -199,68 +242,148 @@ def _n_modes(text: str) -> Any:
     return n
 
 
+def _progress(quiet: bool) -> Any:
+    """Progress lines on stderr, once the work has taken more than a second (quick runs stay silent)."""
+    import time
+
+    start = time.monotonic()
+
+    def say(msg: str) -> None:
+        elapsed = time.monotonic() - start
+        if not quiet and elapsed > 1.0:
+            print(f"[{elapsed:5.1f} s] {msg}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _at_labels(text: str | None, n: int) -> Any:
+    if text is None:
+        return None
+    name, sep, values = text.partition("=")
+    if not sep or name.strip() not in ("mass", "z"):
+        raise ValueError(f"--at must be mass=V1,V2,... or z=V1,V2,..., got {text!r}")
+    try:
+        vals = [float(x) for x in values.split(",")]
+    except ValueError:
+        raise ValueError(f"--at values must be numbers separated by commas, got {values!r}") from None
+    if len(vals) != n:
+        raise ValueError(f"--at has {len(vals)} values for {n} files; give one per file")
+    return [{name.strip(): x} for x in vals]
+
+
 def _identify_cmd(args: argparse.Namespace) -> int:
-    from .identify import calibrate, load_csv
+    from .identify import NoModeFound, calibrate, load_csv
+    from .identify.calibration import identify_resonances
     from .identify.estimators import identify
+    from .identify.resonance import resonance_data
 
-    if args.command == "calibrate":
-        cal = calibrate(args.file, input=args.input, output=args.output, axis=args.axis,
-                        n_modes=_n_modes(args.modes), vtol=args.vtol, margin=args.margin)
-        if args.plot:  # everything computed: only now write
-            import matplotlib
-
-            matplotlib.use("Agg")
-            from .identify.plots import calibration_plot
-
-            fig = calibration_plot(cal)
-            _save_atomic(fig, args.plot)
-        print(cal.summary())
-        if args.plot:
-            print(f"wrote {args.plot}")
-        return 0
-    ds = load_csv(args.file)
-    nm = _n_modes(args.modes)
-    if args.input is not None:
-        if args.output is None:
-            raise ValueError("--output is required with --input")
-        r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm, method=args.method or "oe")
-    else:
-        if ds.kind == "klipper_raw":
-            y, slope = ds.projection(args.axis), 2.0
+    try:
+        if args.command == "calibrate":
+            return _calibrate_cmd(args, calibrate)
+        ds = load_csv(args.file)
+        nm = _n_modes(args.modes)
+        if args.input is not None:
+            if args.output is None:
+                raise ValueError("--output is required with --input")
+            r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm,
+                         method=args.method or "oe")
+        elif ds.kind in ("klipper_raw", "klipper_psd"):
+            if args.output is not None or args.method not in (None, "psd"):
+                raise ValueError("Klipper files are identified from their spectrum (method psd); "
+                                 "--output and other methods do not apply")
+            r = identify_resonances(resonance_data(ds, args.axis), nm)
         elif args.output is not None:
-            y, slope = ds.column(args.output), 0.0
+            method = args.method or "psd"
+            r = identify(ds.t, None, ds.column(args.output), n_modes=nm if method == "psd" else
+                         (1 if nm == "auto" else nm), method=method)
         else:
             raise ValueError("--output is required (or --input and --output) for CSV data")
-        method = args.method or "psd"
-        nm = (2 if method == "psd" else 1) if nm == "auto" else nm
-        r = identify(ds.t, None, y, n_modes=nm, method=method, excitation_slope=slope,
-                     band=(5.0, min(133.0, 0.45 * ds.fs)) if method == "psd" else None)
+    except NoModeFound as exc:
+        print(f"posicast: {exc}", file=sys.stderr)
+        return 1
     if args.json:
         print(json.dumps({"method": r.method, "modes": [
-            {"omega": m.omega, "freq_hz": m.freq_hz, "zeta": m.zeta, "omega_95": list(iv.omega), "zeta_95": list(iv.zeta)}
-            for m, iv in zip(r.modes, r.intervals)], "fit_percent": r.fit_percent, "whiteness_p": r.whiteness_p}, indent=2))
+            {"omega": m.omega, "freq_hz": m.freq_hz, "zeta": m.zeta, "omega_95": list(iv.omega),
+             "zeta_95": list(iv.zeta)} for m, iv in zip(r.modes, r.intervals)],
+            "fit_percent": None if math.isnan(r.fit_percent) else r.fit_percent,
+            "whiteness_p": None if math.isnan(r.whiteness_p) else r.whiteness_p}, indent=2))
     else:
         print(r.summary())
     return 0
 
 
-def _save_atomic(fig: Any, out: str) -> None:
+def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
+    from . import _validate as v
+
+    v.in_open_interval(args.vtol, "--vtol", 0.0, 1.0)
+    margin = v.real(args.margin, "--margin")
+    if not 0.0 <= margin < 0.5:
+        raise ValueError(f"--margin must be in [0, 0.5), got {margin:g}")
+    if args.max_smoothing is not None:
+        v.positive(args.max_smoothing, "--max-smoothing")
+    firmware = [f.strip().lower() for f in args.firmware.split(",") if f.strip()]
+    labels = _at_labels(args.at, len(args.files))
+    cal = calibrate(args.files, firmware=firmware, axis=args.axis, at=labels, vtol=args.vtol, margin=margin,
+                    max_smoothing=args.max_smoothing, slack=args.slack, klipper_version=args.klipper_version,
+                    input=args.input,
+                    output=args.output, n_modes=_n_modes(args.modes), progress=_progress(args.quiet))
+    if args.plot:  # everything computed: only now write
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from .identify.plots import calibration_plot
+
+        _save_atomic(calibration_plot(cal), args.plot)
+    if args.json:
+        print(json.dumps(cal.to_dict(), indent=2))
+    else:
+        print(cal.summary())
+        if args.plot:
+            print(f"wrote {args.plot}")
+    return 0
+
+
+def _output_path(value: Any, option: str) -> Any:
+    """Check an output figure path before any work (see the module docstring); returns a Path."""
+    from ._validate import path_for_output
+
+    return path_for_output(value, option)
+
+
+# Output-path options checked by _run before any subcommand starts work.
+_OUTPUT_OPTIONS = ("out", "plot", "nyquist")
+
+
+def _save_atomic(fig: Any, out: Any, option: str = "--plot") -> None:
+    """Write ``fig`` at exactly ``out``, atomically: a hidden temporary file in the same directory,
+    renamed onto ``out`` once complete.  On any failure nothing is left behind and the error
+    (a one-line ValueError) names ``option`` and the user's path, never the temporary file."""
     import os
     import tempfile
-    from pathlib import Path
 
     import matplotlib.pyplot as plt
 
-    target = Path(out)
-    fd, tmp = tempfile.mkstemp(suffix=target.suffix, dir=target.parent if str(target.parent) else ".")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, target)
+        target = _output_path(out, option)
+        fmt = target.suffix.lower()[1:]
+        tmp = None
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+            with os.fdopen(fd, "wb") as fh:
+                fig.savefig(fh, format=fmt, dpi=110, bbox_inches="tight")
+            mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
+            os.umask(mask)
+            os.chmod(tmp, 0o666 & ~mask)
+            os.replace(tmp, target)
+            tmp = None
+        except (OSError, ValueError, RuntimeError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
+            raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
+        finally:
+            if tmp is not None and os.path.exists(tmp):
+                os.unlink(tmp)
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
@@ -306,6 +429,10 @@ def _print_shaper(S: Any) -> None:
 
 def _run(argv: Sequence[str] | None) -> int:
     args = _build_parser().parse_args(argv)
+    for opt in _OUTPUT_OPTIONS:  # every output path is checked before any work
+        val = getattr(args, opt, None)
+        if val is not None:
+            _output_path(val, f"--{opt}")
     from .shapers.design import KINDS, design
 
     if args.command in ("identify", "calibrate"):
@@ -317,6 +444,10 @@ def _run(argv: Sequence[str] | None) -> int:
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
             print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
         return 0
+    if args.command == "sensitivity":  # the tolerance before any design work
+        from ._validate import real_in_range
+
+        real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
     mode = _mode(args)
     if args.command == "design":
         kind = args.kind.lower()
@@ -326,7 +457,7 @@ def _run(argv: Sequence[str] | None) -> int:
         else:
             _print_shaper(S)
         return 0
-    # sensitivity
+    # sensitivity: design, analyse, draw; write last
     import matplotlib
 
     matplotlib.use("Agg")
@@ -334,24 +465,64 @@ def _run(argv: Sequence[str] | None) -> int:
 
     shapers = [design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
     ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
-    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
-    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
-    fig.savefig(args.out, dpi=120, bbox_inches="tight")
+    lines = []
     for S in shapers:
         ins = insensitivity(S, args.tol, reference=ref)
-        print(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
+        lines.append(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
+    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
+    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
+    _save_atomic(fig, args.out, "--out")
+    for line in lines:
+        print(line)
     print(f"wrote {args.out}")
     return 0
 
 
+_EX_SOFTWARE = 70  # sysexits.h: an internal software error
+
+
+def _origin(exc: BaseException) -> str:
+    """``file:line`` (inside posicast when possible) where ``exc`` was raised."""
+    import os
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    root = os.path.dirname(os.path.abspath(__file__))
+    for fr in reversed(frames):
+        path = os.path.abspath(fr.filename)
+        if path.startswith(root + os.sep):
+            return f"posicast/{os.path.relpath(path, root)}:{fr.lineno}"
+    return f"{os.path.basename(frames[-1].filename)}:{frames[-1].lineno}" if frames else "?"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``posicast`` command."""
+    """Entry point of the ``posicast`` command.
+
+    Returns the exit status: 0 success, 1 ``tune`` found no controller or
+    ``identify``/``calibrate`` no resonance, 2 any error in the arguments or the files
+    (one line on stderr), 70 an internal error (a bug; one line on stderr, the
+    traceback with ``POSICAST_TRACEBACK=1``).
+    """
+    import os
+
+    from .spectra.rootfinder import RootFindingError
+
     try:
         return _run(argv)
-    except (_OneLineError, ValueError, TypeError, OSError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    except (_OneLineError, ValueError, TypeError, OSError, RootFindingError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"posicast: error: {msg}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("posicast: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug: still one line (and the traceback on request)
+        if os.environ.get("POSICAST_TRACEBACK"):
+            raise
+        msg = str(exc).splitlines()[0] if str(exc).strip() else ""
+        print(f"posicast: internal error: {type(exc).__name__}{': ' + msg if msg else ''} (at {_origin(exc)}; "
+              f"please report it, POSICAST_TRACEBACK=1 shows the traceback)", file=sys.stderr)
+        return _EX_SOFTWARE
 
 
 if __name__ == "__main__":  # pragma: no cover

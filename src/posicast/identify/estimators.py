@@ -42,6 +42,7 @@ from scipy import linalg, optimize, signal, stats
 
 from .. import _validate as v
 from ..modes import Mode
+from .significance import ModeTest, NoModeFound, describe_failure, search_cells, wald_test
 
 __all__ = ["Interval", "Identification", "identify", "METHODS", "whiteness", "fit_percent"]
 
@@ -110,6 +111,8 @@ class Identification:
     spectrum: np.ndarray | None = None
     amplitudes: list[float] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    tests: list[ModeTest] = field(default_factory=list)
+    at_edge: list[bool] = field(default_factory=list)
 
     def summary(self) -> str:
         lines = [f"method {self.method}: {len(self.modes)} mode(s)"]
@@ -143,11 +146,16 @@ def whiteness(e: np.ndarray, lags: int = 20) -> float:
     >>> whiteness(np.sin(np.arange(500) * 0.1)) < 1e-6
     True
     """
-    e = np.asarray(e, float) - np.mean(e)
+    e = v.real_array(e, "e")
+    if e.ndim != 1 or e.size < 8:
+        raise ValueError(f"e must be a one-dimensional residual of at least 8 samples, got shape {e.shape}")
+    lags = v.integer(lags, "lags", 1)
+    e = e - np.mean(e)
     n = e.size
     m = min(lags, n // 4)
-    if m < 1 or not np.any(e):
-        return float("nan")
+    if not np.any(e):
+        return 1.0  # a zero residual shows no colour
+
     full = np.correlate(e, e, "full")[n - 1:n + m] if n < 4096 else _acov_fft(e, m)
     r = full[1:] / full[0]
     q = n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))
@@ -181,8 +189,10 @@ class _OEModel:
     """Variable-projection residual of the continuous modal model under ZOH."""
 
     def __init__(self, u: np.ndarray | None, y: np.ndarray, h: float, n_modes: int, *,
-                 feedthrough: bool = True, offset: bool = True, initial_state: bool = True) -> None:
+                 feedthrough: bool = True, offset: bool = True, initial_state: bool = True,
+                 weights: np.ndarray | None = None) -> None:
         self.u, self.y, self.h, self.n = u, y, h, n_modes
+        self.w = weights  # 0 on samples left out of the fit (clipped), else None
         self.feedthrough = feedthrough and u is not None
         self.offset = offset
         self.initial_state = initial_state or u is None
@@ -190,8 +200,14 @@ class _OEModel:
         self.n_lin_last = 0
 
     def basis(self, theta: np.ndarray) -> np.ndarray:
-        cols = []
+        return self.columns(theta)[0]
+
+    def columns(self, theta: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
+        """The regression columns at ``theta`` and, per mode, the indices of its own columns."""
+        cols: list[np.ndarray] = []
+        groups: list[list[int]] = []
         for i in range(self.n):
+            start = len(cols)
             w = math.exp(theta[2 * i])
             z = min(max(theta[2 * i + 1], _ZMIN), _ZMAX)
             p = complex(-z * w, w * math.sqrt(1.0 - z * z))
@@ -205,24 +221,44 @@ class _OEModel:
                 r = np.exp(p.real * self.h * self.k)
                 ph = p.imag * self.h * self.k
                 cols += [r * np.cos(ph), r * np.sin(ph)]
+            groups.append(list(range(start, len(cols))))
         if self.feedthrough:
             cols.append(self.u)
         if self.offset:
             cols.append(np.ones_like(self.y))
-        return np.column_stack(cols)
+        return np.column_stack(cols), groups
+
+    def mode_tests(self, theta: np.ndarray, e: np.ndarray, n_lin: int, hac: bool, cells: float) -> list[ModeTest]:
+        """Wald test of each mode's coefficients at ``theta`` (see :mod:`.significance`)."""
+        Phi, groups = self.columns(theta)
+        y = self.y
+        if self.w is not None:
+            Phi, y = Phi * self.w[:, None], y * self.w
+        dof = self.n_used - n_lin - theta.size
+        out = []
+        for g in groups:
+            rest = [j for j in range(Phi.shape[1]) if j not in g]
+            out.append(wald_test(y, Phi[:, g], Phi[:, rest], e, dof, cells, hac))
+        return out
+
+    @property
+    def n_used(self) -> int:
+        return int(self.y.size if self.w is None else np.count_nonzero(self.w))
 
     def project(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """Residual (0 on left-out samples), model output (every sample) and rank, at ``theta``."""
         Phi = self.basis(theta)
-        nrm = np.linalg.norm(Phi, axis=0)
+        Pw, yw = (Phi, self.y) if self.w is None else (Phi * self.w[:, None], self.y * self.w)
+        nrm = np.linalg.norm(Pw, axis=0)
         nrm[nrm == 0] = 1.0
-        Phi = Phi / nrm
+        Pw = Pw / nrm
         # projection through the (small) Gram matrix, eigen-truncated for rank deficiency
         # (a step at k = 0 makes the forced response a combination of offset and free response)
-        lam, V = np.linalg.eigh(Phi.T @ Phi)
+        lam, V = np.linalg.eigh(Pw.T @ Pw)
         keep = lam > lam[-1] * 1e-13
         W = V[:, keep] / lam[keep]
-        y_hat = Phi @ (W @ (V[:, keep].T @ (Phi.T @ self.y)))
-        return self.y - y_hat, y_hat, int(keep.sum())
+        coef = W @ (V[:, keep].T @ (Pw.T @ yw))
+        return yw - Pw @ coef, (Phi / nrm) @ coef, int(keep.sum())
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
         return self.project(theta)[0]
@@ -243,9 +279,9 @@ def _fit_oe(model: _OEModel, theta0: np.ndarray, w_min: float) -> tuple[np.ndarr
 
 
 def _intervals_from(theta: np.ndarray, J: np.ndarray, e: np.ndarray, n_lin: int,
-                    covariance: str) -> tuple[list[Interval], str, float]:
+                    covariance: str, n_used: int | None = None) -> tuple[list[Interval], str, float]:
     n = e.size
-    dof = max(n - n_lin - theta.size, 1)
+    dof = max((n if n_used is None else n_used) - n_lin - theta.size, 1)
     pw = whiteness(e)
     use = covariance
     if covariance == "auto":
@@ -263,14 +299,6 @@ def _intervals_from(theta: np.ndarray, J: np.ndarray, e: np.ndarray, n_lin: int,
         sz = math.sqrt(max(C[2 * i + 1, 2 * i + 1], 0.0))
         out.append(Interval((math.exp(lw - tq * sw), math.exp(lw + tq * sw)), (max(z - tq * sz, 0.0), z + tq * sz)))
     return out, use, pw
-
-
-def _marginal(J: np.ndarray, k: int) -> np.ndarray:
-    """Jacobian of the first ``k`` parameters with the others projected out (their marginal covariance)."""
-    if J.shape[1] == k:
-        return J
-    Q, _ = np.linalg.qr(J[:, k:])
-    return J[:, :k] - Q @ (Q.T @ J[:, :k])
 
 
 def _numjac(fun: Any, x: np.ndarray) -> np.ndarray:
@@ -301,10 +329,11 @@ def _etfe(u: np.ndarray | None, y: np.ndarray, fs: float) -> tuple[np.ndarray, n
     w = max(1, int(round(3 * nfft / n)))
     ker = np.hanning(w + 2)[1:-1]
     ker /= ker.sum()
-    Y2 = np.convolve(np.abs(np.fft.rfft(np.diff(y), nfft)) ** 2, ker, mode="same")
-    if u is None or not np.any(np.diff(u)):
+    Y2 = np.convolve(np.abs(np.fft.rfft(np.diff(y, prepend=y[0]), nfft)) ** 2, ker, mode="same")
+    du = None if u is None else np.diff(u, prepend=0.0)
+    if du is None or not np.any(du):
         return f, np.sqrt(Y2)
-    U2 = np.convolve(np.abs(np.fft.rfft(np.diff(u), nfft)) ** 2, ker, mode="same")
+    U2 = np.convolve(np.abs(np.fft.rfft(du, nfft)) ** 2, ker, mode="same")
     H = np.sqrt(Y2 / np.maximum(U2, 1e-300))
     H[U2 < 1e-4 * U2.max()] = np.nan
     return f, H
@@ -365,7 +394,7 @@ def _start(model: "_OEModel", u: np.ndarray | None, y: np.ndarray, fs: float, n_
 
 def _oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, *, covariance: str,
         feedthrough: bool | str, offset: bool | str, initial_state: bool | str, start: Sequence[Mode] | None = None,
-        method: str = "oe") -> tuple[Identification, float, int]:
+        method: str = "oe", weights: np.ndarray | None = None) -> tuple[Identification, float, int]:
     terms = {"feedthrough": feedthrough, "offset": offset, "initial_state": initial_state}
     auto = [name for name, val in terms.items() if val == "auto"]
     if auto:
@@ -375,16 +404,17 @@ def _oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: 
         # with the ones the data ask for.  Fitting unneeded free-response columns costs zeta
         # bias: on seed 002's single step at 5 % noise +1.3 % with them, +0.65 % without.
         base = {name: (False if val == "auto" else bool(val)) for name, val in terms.items()}
-        out, rss, k = _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, **base)
+        out, rss, k = _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, weights=weights,
+                          **base)
         th = np.array([[math.log(m.omega), m.zeta] for m in out.modes]).ravel()
         n_lin = k - th.size
         chosen = dict(base)
         for name in auto:
             trial = dict(base)
             trial[name] = True
-            e1, _, n_lin1 = _OEModel(u, y, 1.0 / fs, n_modes, **trial).project(th)
+            e1, _, n_lin1 = _OEModel(u, y, 1.0 / fs, n_modes, weights=weights, **trial).project(th)
             extra = n_lin1 - n_lin
-            dof = y.size - k - extra
+            dof = (y.size if weights is None else int(np.count_nonzero(weights))) - k - extra
             if extra <= 0 or dof <= 0:
                 continue
             rss1 = float(e1 @ e1)
@@ -393,9 +423,11 @@ def _oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: 
                 chosen[name] = True
         if chosen == base:
             return out, rss, k
-        return _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, **chosen)
+        return _oe(t, u, y, fs, n_modes, covariance=covariance, start=start, method=method, weights=weights,
+                   **chosen)
     h = 1.0 / fs
-    model = _OEModel(u, y, h, n_modes, feedthrough=feedthrough, offset=offset, initial_state=initial_state)
+    model = _OEModel(u, y, h, n_modes, feedthrough=feedthrough, offset=offset, initial_state=initial_state,
+                     weights=weights)
     if start is None:
         theta0 = _start(model, u, y, fs, n_modes)
     else:
@@ -413,13 +445,66 @@ def _oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: 
     th, res = best
     e, y_hat, n_lin = model.project(th)
     J = _numjac(model.residual, th)
-    ivs, used, pw = _intervals_from(th, J, e, n_lin, covariance)
+    ivs, used, pw = _intervals_from(th, J, e, n_lin, covariance, model.n_used)
+    cells = search_cells(0.5 / (y.size * h), 0.49 / h, y.size * h)
+    tests = model.mode_tests(th, e, n_lin, used == "hac", cells)
     order = np.argsort(th[0::2])
     modes = [Mode(math.exp(th[2 * i]), float(th[2 * i + 1])) for i in order]
     ivs = [ivs[i] for i in order]
-    out = Identification(modes, ivs, method, fit_percent(y, y_hat), pw, used, y_hat, e, fs)
+    out = Identification(modes, ivs, method, fit_percent(y, y_hat), pw, used, y_hat, e, fs,
+                         tests=[tests[i] for i in order])
     rss = float(e @ e)
     return out, rss, n_lin + th.size
+
+
+def clipped_samples(y: np.ndarray) -> np.ndarray | None:
+    """Samples at a saturated extreme: the largest (or smallest) value held for 3 or more samples
+    in a row at least twice, and reached by at least 0.5 % of the record; None otherwise.
+
+    A sensor or an amplifier that saturates holds its limit, again on each swing; an
+    unsaturated record reaches its extreme on isolated samples, and a response that
+    settles at its largest value holds it once.
+    """
+    out = np.zeros(y.size, dtype=bool)
+    for ext in (float(np.max(y)), float(np.min(y))):
+        at = y == ext
+        if at.sum() < max(4, 0.005 * y.size):
+            continue
+        runs = np.diff(np.flatnonzero(np.diff(np.r_[0, at.astype(np.int8), 0])))[::2]
+        if np.count_nonzero(runs >= 3) >= 2:
+            out |= at
+    return out if out.any() else None
+
+
+def at_band_edge(mode: Mode, f_lo: float, f_hi: float) -> bool:
+    """True when the mode's half-power band ``f (1 +- zeta)`` is not inside ``[f_lo, f_hi]`` Hz."""
+    f = mode.freq_hz
+    half = max(mode.zeta, 1e-3) * f
+    return bool(f - half < f_lo or f + half > f_hi)
+
+
+def _significant_oe(t: np.ndarray, u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int,
+                    kw: dict[str, Any], *, start: Sequence[Mode] | None = None,
+                    method: str = "oe") -> tuple[Identification, float, int]:
+    """:func:`_oe` keeping only the modes the data demand (see :mod:`.significance`).
+
+    The least significant failing mode is dropped and the rest refitted from their
+    estimates, until every mode passes; :class:`NoModeFound` when none does.
+    """
+    dropped: list[str] = []
+    while True:
+        out, rss, k = _oe(t, u, y, fs, n_modes, start=start, method=method, **kw)
+        bad = [i for i, tst in enumerate(out.tests) if not tst.significant]
+        if not bad:
+            out.notes += dropped
+            return out, rss, k
+        worst = max(bad, key=lambda i: out.tests[i].p_adjusted)
+        m, tst = out.modes[worst], out.tests[worst]
+        if n_modes == 1:
+            raise NoModeFound(describe_failure(method, m, tst), m, tst)
+        dropped.append(f"a candidate at {m.freq_hz:.4g} Hz (zeta {m.zeta:.3g}) was dropped: it {tst.describe()}")
+        start = [mm for i, mm in enumerate(out.modes) if i != worst]
+        n_modes -= 1
 
 
 def _good(res: Any, model: _OEModel) -> bool:
@@ -444,15 +529,21 @@ def _arx(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, nk: int = 0) ->
     theta, *_ = np.linalg.lstsq(A, yp, rcond=None)  # eq. 24-25 (pseudo-inverse)
     e = yp - A @ theta
     dof = max(ks.size - 4, 1)
+    # is the model any better than nothing?  F-test of all four coefficients (no frequency search);
+    # on white noise they are all insignificant (a step's input terms alone can be: they are constant)
+    test = wald_test(yp, A, None, e, dof, 1.0, hac=False)
     C = float(e @ e) / dof * np.linalg.pinv(A.T @ A)
 
     def to_mode(a1: float, a2: float) -> tuple[float, float]:
         r = np.roots([1.0, a1, a2])
         if abs(r[0].imag) < 1e-12 or np.any(np.abs(r) >= 1.0) or np.any(np.abs(r) == 0.0):
-            raise ValueError("arx found no stable oscillatory mode (real or unstable discrete poles)")
+            raise NoModeFound("no mode found (arx): the fitted poles are real or unstable, not a damped oscillation")
         s = np.log(r[0] if r[0].imag > 0 else r[1]) / h
         return float(abs(s)), float(-s.real / abs(s))
 
+    if not test.significant:
+        raise NoModeFound("no mode found (arx): the model is no better than noise: it " + test.describe(),
+                          None, test)
     w, z = to_mode(theta[2], theta[3])
     Jm = np.empty((2, 2))
     for j in range(2):
@@ -468,7 +559,7 @@ def _arx(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, nk: int = 0) ->
     y_hat = signal.lfilter(theta[:2] if nk == 0 else np.r_[np.zeros(nk), theta[:2]], np.r_[1.0, theta[2:]], u)
     pw = whiteness(y - y_hat)
     return Identification([Mode(w, min(max(z, 0.0), 0.999999))], [iv], "arx", fit_percent(y, y_hat), pw,
-                          "delta", y_hat, y - y_hat, fs,
+                          "delta", y_hat, y - y_hat, fs, tests=[test],
                           notes=["ARX (seed 002 eq. 21): biased under output noise; intervals assume equation "
                                  "noise and are not honest for output noise"])
 
@@ -516,16 +607,26 @@ def _radius_from_bandwidth(dw: float, theta: float) -> float:
 
 
 def _freq(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, *, refine: bool, covariance: str,
-          feedthrough: bool, offset: bool, initial_state: bool) -> Identification:
+          feedthrough: bool, offset: bool, initial_state: bool, weights: np.ndarray | None = None) -> Identification:
     """Seed 002 section 3.2.2 (eq. 26-27) with its iterative refinement."""
     h = 1.0 / fs
     n = y.size
     nfft = max(n, int(round(fs)))  # seed: a one-second window
-    Y, U = np.fft.rfft(np.diff(y), nfft), np.fft.rfft(np.diff(u), nfft)
+    # differenced from rest (u = 0 and y = y[0] before the record): a step at sample 0 is an impulse
+    du, dy = np.diff(u, prepend=0.0), np.diff(y, prepend=y[0])
+    if not np.any(du):
+        raise ValueError("freq: the input is zero throughout; there is no excitation to identify from")
+    Y, U = np.fft.rfft(dy, nfft), np.fft.rfft(du, nfft)
     f = np.fft.rfftfreq(nfft, h)
     aU = np.abs(U)
     H = np.abs(Y) / np.maximum(aU, 1e-300)
-    ok = (aU > 1e-2 * aU.max()) & (f > 2 * fs / n) & (f < 0.45 * fs)
+    inband = (f > 2 * fs / n) & (f < 0.45 * fs)
+    # only where the input carries power: the ratio of two small numbers is noise (a chirp's
+    # spectrum beyond its end frequency made a 180 Hz "mode" of a 28 Hz system)
+    ok = inband & (aU**2 > 0.1 * float(np.mean(aU[inband] ** 2)))
+    if np.count_nonzero(ok) < 8:
+        raise ValueError("freq: the input has power at fewer than 8 frequencies of the band; use a richer input")
+    f_lo_ok, f_hi_ok = float(f[ok].min()), float(f[ok].max())
     Hd = np.where(ok, H, 0.0)
     Hd = np.convolve(Hd, np.ones(3) / 3, mode="same")  # moving average (seed 3.2.2)
     i = int(np.argmax(Hd))
@@ -553,7 +654,8 @@ def _freq(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, *, refine: boo
     zp = r * complex(math.cos(theta), math.sin(theta))  # eq. 27
     s = np.log(zp) / h
     w0, z0 = float(abs(s)), float(np.clip(-s.real / abs(s), _ZMIN, 0.9))
-    model = _OEModel(u, y, h, 1, feedthrough=feedthrough, offset=offset, initial_state=initial_state)
+    model = _OEModel(u, y, h, 1, feedthrough=feedthrough, offset=offset, initial_state=initial_state,
+                     weights=weights)
     th = np.array([math.log(w0), z0])
     notes = [f"spectral estimate before refinement: f = {w0 / 2 / math.pi:.4f} Hz, zeta = {z0:.4f}"]
     if refine:
@@ -581,11 +683,19 @@ def _freq(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, *, refine: boo
                 steps /= 2.0
     e, y_hat, n_lin = model.project(th)
     J = _numjac(model.residual, th)
-    ivs, used, pw = _intervals_from(th, J, e, n_lin, covariance)
+    ivs, used, pw = _intervals_from(th, J, e, n_lin, covariance, model.n_used)
     if not refine:
         notes.append("no refinement: intervals are the local OE curvature at a non-optimal point")
-    return Identification([Mode(math.exp(th[0]), float(th[1]))], ivs, "freq", fit_percent(y, y_hat), pw, used,
-                          y_hat, e, fs, notes=notes)
+    mode = Mode(math.exp(th[0]), float(th[1]))
+    test = model.mode_tests(th, e, n_lin, used == "hac", search_cells(f_lo_ok, f_hi_ok, n * h))[0]
+    if not test.significant:
+        raise NoModeFound(describe_failure("freq", mode, test), mode, test)
+    edge = at_band_edge(mode, f_lo_ok, f_hi_ok)
+    if edge:
+        notes.append(f"the mode at {mode.freq_hz:.4g} Hz lies at the edge of the excited band "
+                     f"[{f_lo_ok:.4g}, {f_hi_ok:.4g}] Hz: its damping is not resolved")
+    return Identification([mode], ivs, "freq", fit_percent(y, y_hat), pw, used,
+                          y_hat, e, fs, notes=notes, tests=[test], at_edge=[edge])
 
 
 def _matrix_pencil(y: np.ndarray, h: float, n_modes: int) -> list[Mode]:
@@ -606,113 +716,30 @@ def _matrix_pencil(y: np.ndarray, h: float, n_modes: int) -> list[Mode]:
         modes.append(Mode(float(abs(s_)), float(np.clip(-s_.real / abs(s_), _ZMIN, 0.9))))
     modes.sort(key=lambda m: m.omega)
     if not modes:
-        raise ValueError("decay: no decaying oscillation found in y (is it a ring-down record?)")
+        raise NoModeFound("no mode found (decay): no decaying oscillation in y (is it a ring-down record?)")
     return modes[:n_modes]
 
 
-def _psd(y: np.ndarray, fs: float, n_modes: int, *, band: tuple[float, float] | None,
-         excitation_slope: float, freqs: np.ndarray | None = None, psd: np.ndarray | None = None,
-         nperseg: int | None = None) -> Identification:
-    """Output-only: fit ``P(f) = (f/f0)^a (sum_k A_k L_k(f) + B0 + B1 f^2)`` to the Welch PSD.
+def _psd(y: np.ndarray, fs: float, n_modes: int | str, *, band: tuple[float, float] | None,
+         excitation_slope: float) -> Identification:
+    """Output-only: Welch PSD (1 Hz resolution) fitted by :func:`posicast.identify.spectral.fit_spectrum`
+    with an excitation ``E(f) = f^excitation_slope``."""
+    from .spectral import (KAISER6_CORRELATION, Spectrum, fit_spectrum,  # noqa: PLC0415 (spectral imports this)
+                           welch_dispersion, welch_psd)
 
-    ``L_k(f) = f_k^4 / ((f_k^2 - f^2)^2 + (2 zeta_k f_k f)^2)`` is the power of one
-    mode; cross terms between modes are neglected, and the excitation is
-    assumed smooth, ``f^a`` (Klipper's sweep: a = 2).  Fitted on relative
-    (1/P-weighted) errors, a Welch PSD's natural scale.  Limits: the half-power
-    width 2 zeta f must span several frequency bins; modes closer than about
-    their half-power width are not separated; intervals come from the fit
-    residual (HAC over bins), not from the PSD's chi-square statistics.
-    """
-    if psd is None:
-        n = y.size
-        if nperseg is None:
-            nperseg = 1 << int(np.floor(np.log2(max(n // 8, 64))))
-        freqs, psd = signal.welch(y - np.mean(y), fs=fs, nperseg=min(nperseg, n), detrend="constant")
-    if freqs is None or psd is None:
-        raise ValueError("psd: give both freqs and psd, or neither")
-    lo, hi = band if band is not None else (max(freqs[1], 2.0), 0.45 * fs)
-    sel = (freqs >= lo) & (freqs <= hi) & (psd > 0)
-    f, P = freqs[sel], psd[sel]
-    if f.size < 8 * n_modes:
-        raise ValueError(f"psd: only {f.size} frequency bins in the band [{lo:g}, {hi:g}] Hz")
-    fref = float(np.median(f))
-    ex = (f / fref) ** excitation_slope
-    Ps = P / ex
-    pk = _peaks(f, Ps, lo, hi, n_modes)
-    while len(pk) < n_modes:
-        pk.append((min(1.5 * pk[-1][0], hi), 0.05))
-    theta0 = np.array([[math.log(2 * math.pi * fp), max(zp, 0.01)] for fp, zp in pk]).ravel()
-    wgt = 1.0 / P
-
-    def cols(th: np.ndarray) -> np.ndarray:
-        c = []
-        for i in range(n_modes):
-            fk = math.exp(th[2 * i]) / (2 * math.pi)
-            zk = th[2 * i + 1]
-            c.append(ex * fk**4 / ((fk * fk - f * f) ** 2 + (2 * zk * fk * f) ** 2))
-        c += [ex, np.ones_like(f)]  # direct path through the excitation; sensor noise floor
-        return np.column_stack(c)
-
-    def resid(th: np.ndarray) -> np.ndarray:
-        A = cols(th) * wgt[:, None]
-        coef, *_ = np.linalg.lstsq(A, np.ones_like(f), rcond=None)
-        return A @ coef - 1.0
-
-    lo_b = np.tile([math.log(2 * math.pi * lo), 1e-3], n_modes)
-    hi_b = np.tile([math.log(2 * math.pi * hi), 0.6], n_modes)
-    res = optimize.least_squares(resid, np.clip(theta0, lo_b + 1e-9, hi_b - 1e-9), bounds=(lo_b, hi_b),
-                                 x_scale="jac", xtol=1e-10, ftol=1e-12)
-    th1 = res.x
-    A = cols(th1) * wgt[:, None]
-    coef, *_ = np.linalg.lstsq(A, np.ones_like(f), rcond=None)
-    # Stage 2: coherent modal model |c0 + sum_k (a_k + b_k s) / (s^2 + 2 zeta_k w_k s + w_k^2)|^2
-    # with real partial-fraction coefficients (a real transfer function), plus a noise floor,
-    # fitted on log(P): the power-sum model above ignores the interference of close modes.
-    s_ = 2j * math.pi * f
-    lf = np.log(P)
-
-    def coherent(x: np.ndarray) -> np.ndarray:
-        H = np.full(f.shape, x[2 * n_modes], dtype=complex)
-        for i in range(n_modes):
-            w, z = math.exp(x[2 * i]), x[2 * i + 1]
-            a, b = x[2 * n_modes + 1 + 2 * i], x[2 * n_modes + 2 + 2 * i]
-            H += (a * w * w + b * w * s_) / (s_ * s_ + 2 * z * w * s_ + w * w)
-        return ex * np.abs(H) ** 2 + x[-1] ** 2
-
-    def resid2(x: np.ndarray) -> np.ndarray:
-        return np.log(coherent(x)) - lf
-
-    best = None
-    scale = math.sqrt(max(float(np.median(Ps)), 1e-300))
-    floor = math.sqrt(max(float(coef[n_modes + 1]), 1e-6 * scale**2))
-    for signs in np.ndindex(*(2,) * n_modes):
-        x0 = list(th1)
-        x0.append(math.sqrt(max(coef[n_modes], 0.0)) or 1e-3 * scale)
-        for i in range(n_modes):
-            x0 += [(1 - 2 * signs[i]) * math.sqrt(max(coef[i], 1e-12 * scale**2)), 0.0]
-        x0.append(floor)
-        x0 = np.array(x0)
-        lo2 = np.r_[lo_b, np.full(2 * n_modes + 2, -np.inf)]
-        hi2 = np.r_[hi_b, np.full(2 * n_modes + 2, np.inf)]
-        r2 = optimize.least_squares(resid2, np.clip(x0, lo2 + 1e-9, hi2 - 1e-9), bounds=(lo2, hi2),
-                                    x_scale="jac", xtol=1e-10, ftol=1e-12)
-        if best is None or r2.cost < best.cost:
-            best = r2
-    if best is None:  # the start loop always runs at least once
-        raise RuntimeError("psd fit: no starting point could be evaluated")
-    x = best.x
-    e = resid2(x)
-    J = _numjac(resid2, x)
-    ivs, used, pw = _intervals_from(x[: 2 * n_modes], _marginal(J, 2 * n_modes), e, J.shape[1], "hac")
-    th = x[: 2 * n_modes]
-    model = coherent(x)
-    order = np.argsort(th[0::2])
-    modes = [Mode(math.exp(th[2 * i]), float(th[2 * i + 1])) for i in order]
-    amps = [float(math.hypot(x[2 * n_modes + 1 + 2 * i], x[2 * n_modes + 2 + 2 * i])) for i in order]
-    out = Identification(modes, [ivs[i] for i in order], "psd", float("nan"), pw, used, model, e, fs,
-                         freqs=f, spectrum=P, amplitudes=amps,
-                         notes=[f"output-only PSD fit on [{lo:.1f}, {hi:.1f}] Hz, excitation ~ f^{excitation_slope:g}"])
-    return out
+    resolution = max(1.0, 8.0 * fs / y.size)  # at least 8 segments
+    f, P, K = welch_psd(y - np.mean(y), fs, resolution)
+    lo, hi = band if band is not None else (max(2.0, 2.0 * float(f[1])), 0.45 * fs)
+    E = np.where(f > 0, np.maximum(f, 1e-300) ** excitation_slope, 0.0)
+    spec = Spectrum(f, P, E, (lo, hi), low_frequency=False, resolution=float(f[1] - f[0]),
+                    source="Welch PSD of y", correlation=KAISER6_CORRELATION,
+                    dispersion_floor=welch_dispersion(np.kaiser(2 * (f.size - 1), 6.0), K))
+    r = fit_spectrum(spec, n_modes)
+    return Identification(r.modes, [Interval(*iv) for iv in r.intervals], "psd", float("nan"), float("nan"),
+                          "whittle", r.fit.model, None, fs, freqs=r.fit.freqs, spectrum=r.fit.psd,
+                          amplitudes=r.shares, tests=r.tests, at_edge=r.at_edge,
+                          notes=[f"output-only PSD fit on [{lo:.1f}, {hi:.1f}] Hz, excitation ~ f^{excitation_slope:g}"]
+                          + r.notes)
 
 
 # ----------------------------------------------------------------------------- public entry
@@ -806,12 +833,32 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
     if auto:
         if n_modes != "auto":
             raise ValueError(f"n_modes must be an integer >= 1 or 'auto', got {n_modes!r}")
-        if method != "oe":
-            raise ValueError("n_modes='auto' is available for method='oe' only")
+        if method not in ("oe", "psd"):
+            raise ValueError("n_modes='auto' is available for method='oe' and 'psd' only")
         max_modes = v.integer(max_modes, "max_modes", 1)
     else:
         n_modes = v.integer(n_modes, "n_modes", 1)
     t, uu, yy, fs = _check_signals(t, u, y, need_u=method in ("oe", "arx", "freq"))
+    spread = float(np.ptp(yy))
+    if spread <= 1e-12 * max(float(np.max(np.abs(yy))), 1e-300):
+        raise NoModeFound(f"no mode found ({method}): the output is constant ({float(yy[0]):.6g} throughout)")
+    clip = clipped_samples(yy)
+    weights = None if clip is None else (~clip).astype(float)
+    clip_note = [] if clip is None else [
+        f"the output is clipped (held at {float(np.max(yy)):.6g} / {float(np.min(yy)):.6g}) on {int(clip.sum())} "
+        f"samples of {yy.size}: " + ("they are left out of the fit" if method in ("oe", "freq", "decay") else
+                                     "this method cannot leave them out; use method='oe'")]
+    out = _dispatch(method, t, uu, yy, fs, n_modes, auto, weights, covariance=covariance, feedthrough=feedthrough,
+                    offset=offset, initial_state=initial_state, max_modes=max_modes, refine=refine, band=band,
+                    excitation_slope=excitation_slope, nk=nk)
+    out.notes += clip_note
+    return out
+
+
+def _dispatch(method: str, t: np.ndarray, uu: np.ndarray | None, yy: np.ndarray, fs: float, n_modes: Any,
+              auto: bool, weights: np.ndarray | None, *, covariance: str, feedthrough: Any, offset: Any,
+              initial_state: Any, max_modes: int, refine: bool, band: Any, excitation_slope: float,
+              nk: int) -> Identification:
     if method == "arx":
         if n_modes != 1:
             raise ValueError("method='arx' (seed 002 eq. 20) fits one mode; n_modes must be 1")
@@ -820,28 +867,34 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
         if n_modes != 1:
             raise ValueError("method='freq' (seed 002 section 3.2.2) fits one mode; n_modes must be 1")
         return _freq(t, uu, yy, fs, refine=refine, covariance=covariance, feedthrough=feedthrough is True,
-                     offset=offset is not False, initial_state=initial_state is not False)
+                     offset=offset is not False, initial_state=initial_state is not False, weights=weights)
     if method == "psd":
         if band is not None:
             lo, hi = (v.positive(band[0], "band[0]"), v.positive(band[1], "band[1]"))
             if not lo < hi <= fs / 2:
                 raise ValueError(f"band must satisfy 0 < low < high <= fs/2 = {fs / 2:g}, got {band}")
             band = (lo, hi)
-        return _psd(yy, fs, int(n_modes), band=band, excitation_slope=v.real(excitation_slope, "excitation_slope"))
+        slope = v.real(excitation_slope, "excitation_slope")
+        if not -4.0 <= slope <= 4.0:
+            raise ValueError(f"excitation_slope must be in [-4, 4], got {slope:g}")
+        return _psd(yy, fs, n_modes, band=band, excitation_slope=slope)
     if method == "decay":
         start = _matrix_pencil(yy - np.mean(yy), 1.0 / fs, int(n_modes))
-        out, _, _ = _oe(t, None, yy, fs, len(start), covariance=covariance, feedthrough=False,
-                        offset=offset is not False, initial_state=True, start=start, method="decay")
-        return out
+        return _significant_oe(t, None, yy, fs, len(start), dict(
+            covariance=covariance, feedthrough=False, offset=offset is not False, initial_state=True,
+            weights=weights), start=start, method="decay")[0]
     for name, val in (("feedthrough", feedthrough), ("offset", offset), ("initial_state", initial_state)):
         if val != "auto" and not isinstance(val, bool):
             raise ValueError(f"{name} must be True, False or 'auto', got {val!r}")
-    kw = dict(covariance=covariance, feedthrough=feedthrough, offset=offset, initial_state=initial_state)
+    kw = dict(covariance=covariance, feedthrough=feedthrough, offset=offset, initial_state=initial_state,
+              weights=weights)
     if not auto:
-        return _oe(t, uu, yy, fs, int(n_modes), **kw)[0]
+        return _significant_oe(t, uu, yy, fs, int(n_modes), kw)[0]
     best, scores = None, {}
     for n in range(1, max_modes + 1):
-        r, rss, k = _oe(t, uu, yy, fs, n, **kw)
+        r, rss, k = _significant_oe(t, uu, yy, fs, n, kw)
+        if len(r.modes) < n:  # a mode of this order was not significant: higher orders add only noise
+            break
         bic = yy.size * math.log(max(rss, 1e-300) / yy.size) + k * math.log(yy.size)
         scores[n] = bic
         if best is None or bic < best[1]:

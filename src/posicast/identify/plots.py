@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from ..analysis import residual_vibration
-from .estimators import Identification, _etfe
-from .recommend import Calibration
+from .calibration import Calibration
+from .estimators import Identification
 
 __all__ = ["fit_plot", "calibration_plot"]
 
@@ -41,37 +40,76 @@ def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Any = None
 
 
 def calibration_plot(cal: Calibration) -> Any:
-    """Two panels: spectrum with fitted model; residual vibration of the recommended shaper."""
+    """The calibration figure; returns the figure.
+
+    Left, per file: the measured PSD, the fitted model and its background (excitation
+    through a flat path, sweep lines, sensor floor), the excitation shape, each mode's
+    95 % frequency interval and the fitted band.  Right: the spectrum the firmware
+    scores on (grey) and the vibration left by each recommended setting (solid) and by
+    the firmware tool's own pick (dashed), worst over damping 0.075-0.15.
+    """
     import matplotlib.pyplot as plt
+
+    from ..firmware import vibration_grid
+    from ..firmware.klipper import KLIPPER_TEST_DAMPING
 
     if not isinstance(cal, Calibration):
         raise TypeError("cal must be a Calibration")
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4))
-    ident = cal.identification
-    if ident is not None and ident.freqs is not None:
-        fit_plot(ident, ax=a1)
-    elif ident is not None and ident.residual is not None and ident.y_fit is not None:
-        y = ident.y_fit + ident.residual
-        f, H = _etfe(None, y, ident.fs)
-        fm, Hm = _etfe(None, ident.y_fit, ident.fs)
-        a1.semilogy(f, H, lw=0.7, label="measured output spectrum")
-        a1.semilogy(fm, Hm, lw=1.2, label="model output spectrum")
-        a1.set_xlim(0, ident.fs / 2)
-        a1.set_xlabel("frequency [Hz]")
-        a1.legend(fontsize=8)
-    a1.set_title("identified modes: " + ", ".join(f"{m.freq_hz:.1f} Hz / {m.zeta:.3f}" for m in cal.modes))
-    fmax = 2.0 * max(m.freq_hz for m in cal.modes)
-    f = np.linspace(0.2 * min(m.freq_hz for m in cal.modes), fmax, 600)
-    for c in cal.candidates[:4]:
-        vv = residual_vibration(c.shaper, 2 * math.pi * f, float(np.mean([m.zeta for m in cal.modes])))
-        a2.plot(f, 100 * np.asarray(vv), lw=2.0 if c.shaper is cal.recommended else 0.9, label=c.label)
-    for m, iv in zip(cal.modes, cal.intervals):
-        a2.axvspan(*iv.freq_hz, color="orange", alpha=0.3)
-    a2.axhline(5, color="k", lw=0.5, ls="--")
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, fr in enumerate(cal.files):
+        c = colours[k % len(colours)]
+        name = fr.path.rsplit("/", 1)[-1]
+        ident = fr.identification
+        if ident is None or ident.freqs is None:
+            if fr.resonance is not None:
+                sp = fr.resonance.spectrum
+                a1.semilogy(sp.freqs, np.maximum(sp.psd, 1e-300), ".", ms=2, color=c, label=f"{name}: no resonance")
+            continue
+        a1.semilogy(ident.freqs, ident.spectrum, ".", ms=2.5, color=c, label=f"{name} (measured)")
+        a1.semilogy(ident.freqs, ident.y_fit, "-", lw=1.3, color=c, label="fitted model")
+        if fr.resonance is not None:
+            sp = fr.resonance.spectrum
+            sel = (sp.freqs >= sp.band[0]) & (sp.freqs <= sp.band[1])
+            E = sp.excitation[sel] * (1.0 if sp.normalisation is None else sp.normalisation[sel])
+            if np.any(E > 0):
+                scale = float(np.median(ident.spectrum)) / float(np.median(E[E > 0]))
+                a1.semilogy(sp.freqs[sel], E * scale, ":", lw=1, color=c, label="excitation (shape)")
+            for edge in sp.band:
+                a1.axvline(edge, color=c, lw=0.6, ls="--")
+        for m, iv in zip(ident.modes, ident.intervals):
+            a1.axvspan(*iv.freq_hz, color=c, alpha=0.15)
+    a1.set_xlabel("frequency [Hz]")
+    a1.set_ylabel("PSD")
+    a1.set_title("identified modes: " + ", ".join(f"{m.freq_hz:.1f} Hz / {m.zeta:.3f}" for m in cal.modes),
+                 fontsize=9)
+    if a1.get_legend_handles_labels()[0]:
+        a1.legend(fontsize=7)
+    spectra = [(fr.resonance.firmware_freqs, fr.resonance.firmware_psd) for fr in cal.files if fr.resonance]
+    fmax = 2.5 * max(m.freq_hz for m in cal.modes)
+    f = np.linspace(1.0, max(fmax, 50.0), 800)
+    if spectra:
+        a2b = a2.twinx()
+        for b, p in spectra:
+            keep = b <= f[-1]
+            a2b.fill_between(b[keep], p[keep], color="0.85", lw=0)
+        a2b.set_yticks([])
+    for k, rec in enumerate(cal.recommendations):
+        c = colours[k % len(colours)]
+        for cand, ls, tag in ((rec.best, "-", "posicast"), (rec.reference, "--", "own tool")):
+            if cand is None:
+                continue
+            A, T = cand.setting.impulses
+            V = vibration_grid(A, T[None, :], f, np.asarray(KLIPPER_TEST_DAMPING))[0].max(axis=1)
+            lab = f"{rec.firmware.name}{' ' + rec.axis if rec.axis else ''} {tag}: {cand.setting.describe()}"
+            a2.plot(f, 100 * V, ls, color=c, lw=1.6 if tag == "posicast" else 1.0, label=lab)
+    a2.set_zorder(3)
+    a2.patch.set_visible(False)
     a2.set_xlabel("frequency [Hz]")
-    a2.set_ylabel("residual vibration [%]")
+    a2.set_ylabel("remaining vibration [%]")
     a2.set_ylim(0, 100)
-    a2.legend(fontsize=8)
-    a2.set_title(f"recommended: {cal.label}")
+    if a2.get_legend_handles_labels()[0]:
+        a2.legend(fontsize=7)
+    a2.set_title("shaper response over the measured spectrum (grey)", fontsize=9)
     fig.tight_layout()
     return fig

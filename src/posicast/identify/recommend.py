@@ -1,51 +1,204 @@
-"""From identified modes to a recommended shaper and firmware configuration lines.
+"""From identified modes to the best setting a firmware can run, and to posicast's own optimum.
 
-Every lumped shaper family of ``posicast.design`` is designed for the dominant
-mode and, when there are several modes, convolved over all of them; each
-candidate is scored by its **worst-case residual vibration** over every mode's
-95 % box (frequency interval widened by ``margin``, damping interval), weighted
-by the mode's share of the response, by its duration, and by Klipper's
-smoothing measure (shaper_calibrate.py: positional offset at 5000 mm/s^2,
-square corner velocity 5 mm/s).  The shortest (least smoothing) candidate
-within ``vtol`` wins; if none is within ``vtol``, the most robust one.
+**What is scored.**  Every shaper type the firmware offers, at every frequency it
+accepts (0.2 Hz steps) and at two design damping ratios (the firmware's default 0.1
+and the identified dominant mode's), on the impulses the firmware itself computes
+(:mod:`posicast.firmware`):
 
-Config lines: Klipper ``[input_shaper]`` (types zv, mzv, zvd, ei, 2hump_ei,
-3hump_ei; Klipper designs these itself from ``shaper_freq`` and
-``damping_ratio``) and RepRapFirmware ``M593`` (types mzv, zvd, zvdd, zvddd,
-ei2, ei3, else ``P"custom"`` with cumulative amplitudes ``H`` and impulse
-intervals ``T``).
+* ``vibration``: posicast's worst case, the largest residual vibration over each
+  identified mode's 95 % box (frequency interval widened by ``margin`` for the drift
+  of a machine's modes with position and load, damping interval), weighted by the
+  mode's share of the measured vibration; this replaces the single assumed damping
+  of the firmware tools;
+* ``firmware_vibration``: Klipper's own remaining-vibrations metric on the measured
+  spectra (worst of damping 0.075, 0.1, 0.15 and of the files), when spectra exist;
+* smoothing and ``max_accel`` as Klipper's calibration computes them (the only
+  published measure; used for every firmware, for comparison).
+
+**What is chosen.**  The least smoothing among the settings whose worst case stays
+within ``vtol`` (and under ``max_smoothing`` when given); if none does, the most
+robust one.  With spectra, the firmware tool's own pick is computed too (Klipper's
+selection rules, :func:`posicast.firmware.klipper.klipper_recommendation`), and a
+setting is only eligible if Klipper's metric rates it at most ``slack`` (default one
+point) worse than that pick and that pick does not dominate it (as good or better in
+both vibration and smoothing): posicast never prints a line the firmware's own tool
+beats on its own terms, and trades at most ``slack`` of the tool's vibration measure
+for less smoothing.
+
+**posicast's optimum** (no firmware limits): posicast's exact designs (``zv``,
+``mzv``, ``zvd``, ``ei``, ``ei2``, ``ei3``) at each mode and their convolutions over
+the modes, the shortest within ``vtol`` over the boxes; for JSON or C export.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 
 from .. import _validate as v
-from ..analysis import residual_vibration
+from ..firmware import Firmware, Klipper, Setting, ShaperType, vibration_grid
+from ..firmware.base import smoothing_offsets
+from ..firmware.klipper import DEFAULT_DAMPING, _above_threshold, firmware_vibrations, klipper_recommendation
 from ..modes import Mode
 from ..shapers import Shaper, design
-from .data import load_csv
-from .estimators import Identification, Interval, identify
+from .estimators import Identification, Interval
 
-__all__ = ["Candidate", "Calibration", "calibrate", "recommend", "klipper_smoothing", "config_lines"]
+__all__ = ["ModeBox", "mode_boxes", "Candidate", "Recommendation", "recommend_setting", "optimum",
+           "klipper_smoothing"]
 
-FAMILIES: list[tuple[str, str, dict[str, Any]]] = [
-    ("ZV", "zv", {}), ("MZV", "mzv", {}), ("ZVD", "zvd", {}), ("ZVDD", "zvdd", {}), ("ZVDDD", "zvddd", {}),
-    ("EI", "ei", {"vtol": 0.05}), ("2-hump EI", "ei2", {"vtol": 0.05}), ("3-hump EI", "ei3", {"vtol": 0.05}),
-]
-KLIPPER = {"zv": "zv", "mzv": "mzv", "zvd": "zvd", "ei": "ei", "ei2": "2hump_ei", "ei3": "3hump_ei"}
-RRF = {"mzv": "mzv", "zvd": "zvd", "zvdd": "zvdd", "zvddd": "zvddd", "ei2": "ei2", "ei3": "ei3"}
+Spectra = list[tuple[np.ndarray, np.ndarray]]
+_MAX_GRID = 800
+
+
+@dataclass(frozen=True)
+class ModeBox:
+    """One mode's uncertainty for scoring: frequency (rad/s) and damping ranges, and its weight."""
+
+    mode: Mode
+    omega: tuple[float, float]
+    zeta: tuple[float, float]
+    weight: float
+
+    def grid(self, n_w: int = 9, n_z: int = 3) -> tuple[np.ndarray, np.ndarray]:
+        """Frequencies (Hz) and damping ratios spanning the box."""
+        f = np.linspace(self.omega[0], self.omega[1], n_w) / (2.0 * math.pi)
+        z = np.linspace(self.zeta[0], self.zeta[1], n_z)
+        return f, z
+
+
+def mode_boxes(modes: Sequence[Mode], intervals: Sequence[Interval], shares: Sequence[float] | None = None,
+               margin: float = 0.05) -> list[ModeBox]:
+    """The boxes of identified modes: intervals widened by ``margin``, weights ``share / max share``."""
+    margin = _margin(margin)
+    modes = v.sequence(modes, "modes", min_len=1)
+    intervals = v.sequence(intervals, "intervals")
+    if not all(isinstance(m, Mode) for m in modes):
+        raise TypeError("modes must be posicast Mode objects")
+    if len(intervals) != len(modes):
+        raise ValueError(f"intervals must have one entry per mode ({len(modes)}), got {len(intervals)}")
+    ivs = []
+    for k, iv in enumerate(intervals):
+        try:
+            (w0, w1), (z0, z1) = iv
+        except (TypeError, ValueError):
+            raise TypeError(f"intervals[{k}] must be an Interval ((omega_lo, omega_hi), (zeta_lo, zeta_hi))") from None
+        w0, w1 = v.positive(w0, f"intervals[{k}].omega[0]"), v.positive(w1, f"intervals[{k}].omega[1]")
+        z0, z1 = v.real(z0, f"intervals[{k}].zeta[0]"), v.real(z1, f"intervals[{k}].zeta[1]")
+        if not (w0 <= w1 and 0.0 <= z0 <= z1 and w1 < 1e12):
+            raise ValueError(f"intervals[{k}] must have 0 < omega_lo <= omega_hi < 1e12 and 0 <= zeta_lo <= zeta_hi, "
+                             f"got {iv!r}")
+        ivs.append(Interval((w0, w1), (z0, z1)))
+    intervals = ivs
+    if shares is not None and not isinstance(shares, (list, tuple, np.ndarray)):
+        raise TypeError(f"shares must be a sequence of numbers (one per mode) or None, got {type(shares).__name__}")
+    if shares is not None and len(shares) > 0:
+        sh = v.strict_real_array(shares, "shares")
+        if sh.shape != (len(modes),) or np.any(sh < 0):
+            raise ValueError(f"shares must be {len(modes)} values >= 0 (one per mode), got {sh.tolist()}")
+    else:
+        sh = np.ones(len(modes))
+    w = sh / sh.max() if sh.max() > 0 else np.ones(len(modes))
+    out = []
+    for m, iv, wk in zip(modes, intervals, w):
+        lo, hi = iv.omega
+        z0, z1 = max(iv.zeta[0], 0.0), min(max(iv.zeta[1], m.zeta), 0.95)
+        out.append(ModeBox(m, (lo * (1 - margin), hi * (1 + margin)), (z0, z1), float(wk)))
+    return out
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One scored firmware setting.
+
+    Attributes
+    ----------
+    setting : Setting
+        Firmware, shaper type, frequency, design damping.
+    vibration : float
+        posicast's worst case over the mode boxes (weighted), 0..1.
+    per_mode : tuple of float
+        The weighted worst case per mode.
+    firmware_vibration : float or None
+        Klipper's remaining vibrations on the measured spectra, 0..1 (None without spectra).
+    smoothing : float
+        Klipper's smoothing at 5000 mm/s^2, mm.
+    max_accel : float
+        Acceleration at which the smoothing reaches 0.12 mm, mm/s^2.
+    """
+
+    setting: Setting
+    vibration: float
+    per_mode: tuple[float, ...]
+    firmware_vibration: float | None
+    smoothing: float
+    max_accel: float
+
+    @property
+    def label(self) -> str:
+        return self.setting.describe()
+
+    @property
+    def shaper(self) -> Shaper:
+        return self.setting.shaper()
+
+    def row(self) -> str:
+        fv = "   -  " if self.firmware_vibration is None else f"{100 * self.firmware_vibration:6.1f}"
+        return (f"{self.setting.shaper_type.written:>16} {self.setting.freq:7.1f} {self.setting.damping:6.3f} "
+                f"{100 * self.vibration:8.1f} {fv} {self.smoothing:9.3f} {self.max_accel:9.0f}")
+
+
+HEADER = f"{'type':>16} {'freq Hz':>7} {'damp':>6} {'worst %':>8} {'fw %':>6} {'smooth mm':>9} {'max_accel':>9}"
+
+
+@dataclass
+class Recommendation:
+    """The recommendation for one firmware (and axis).
+
+    Attributes
+    ----------
+    firmware : Firmware
+    axis : str or None
+    best : Candidate
+    per_type : dict of str to Candidate
+        The best setting of each shaper type (same rule as ``best``).
+    reference : Candidate or None
+        The firmware tool's own pick on the same spectra (Klipper's rules).
+    config : list of str
+        The lines to paste.
+    reasoning : list of str
+    """
+
+    firmware: Firmware
+    axis: str | None
+    best: Candidate
+    per_type: dict[str, Candidate]
+    reference: Candidate | None
+    config: list[str]
+    reasoning: list[str] = field(default_factory=list)
+
+    def table(self) -> str:
+        lines = [HEADER] + [c.row() + ("   <- recommended" if c.setting == self.best.setting else "")
+                            for c in self.per_type.values()]
+        if self.reference is not None:
+            lines.append(self.reference.row() + f"   <- {self.firmware.name}'s own tool")
+        return "\n".join(lines)
+
+
+def _margin(margin: Any) -> float:
+    margin = v.real(margin, "margin")
+    if not 0.0 <= margin < 0.5:
+        raise ValueError(f"margin must be in [0, 0.5), got {margin:g}")
+    return margin
 
 
 def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
-    """Klipper's smoothing of an impulse shaper (mm): max offset of a 90 / 180 degree turn.
+    """Klipper's smoothing of an impulse shaper (mm): the offset after a 90 or 180 degree turn.
 
-    Follows ``_get_shaper_smoothing`` of Klipper's shaper_calibrate.py.
+    As ``_get_shaper_smoothing`` of Klipper's shaper_calibrate.py: ``accel`` in mm/s^2,
+    ``scv`` the square corner velocity in mm/s.  NaN for distributed or IIR shapers.
 
     Examples
     --------
@@ -55,220 +208,292 @@ def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -
     >>> 0 < a < b
     True
     """
-    T, A = shaper.impulses
+    if not isinstance(shaper, Shaper):
+        raise TypeError(f"shaper must be a posicast Shaper, got {type(shaper).__name__}")
+    accel = v.positive(accel, "accel")
+    scv = v.real(scv, "scv")
+    if scv < 0:
+        raise ValueError(f"scv must be >= 0, got {scv:g}")
     if shaper.distributed or shaper.continuous is not None:
         return float("nan")
-    half = 0.5 * accel
-    inv = 1.0 / float(np.sum(A))
-    ts = float(np.sum(A * T)) * inv
-    d = T - ts
-    o90 = float(np.sum(np.where(T >= ts, A * (scv + half * d) * d, 0.0))) * inv * math.sqrt(2.0)
-    o180 = float(np.sum(A * half * d * d)) * inv
-    return max(o90, o180)
-
-
-@dataclass
-class Candidate:
-    """One scored shaper."""
-
-    label: str
-    kind: str
-    shaper: Shaper
-    worst_vibration: float
-    duration: float
-    smoothing: float
-    per_mode: list[float]
-
-
-@dataclass
-class Calibration:
-    """Result of :func:`calibrate` / :func:`recommend`.
-
-    Attributes
-    ----------
-    modes, intervals : identified modes and their 95 % intervals
-    recommended : Shaper
-    config : list of str
-        Klipper and RepRapFirmware lines.
-    candidates : list of Candidate, best first
-    reasoning : list of str
-    identification : Identification
-    """
-
-    modes: list[Mode]
-    intervals: list[Interval]
-    recommended: Shaper
-    config: list[str]
-    candidates: list[Candidate]
-    reasoning: list[str]
-    identification: Identification | None = None
-    label: str = ""
-    notes: list[str] = field(default_factory=list)
-
-    def summary(self) -> str:
-        out = []
-        if self.identification is not None:
-            out.append(self.identification.summary())
-        out.append(f"recommended: {self.label}, duration {self.recommended.duration * 1000:.2f} ms")
-        out += ["  " + r for r in self.reasoning]
-        out += self.config
-        return "\n".join(out)
-
-
-def _box(iv: Interval, margin: float, n_w: int = 21, n_z: int = 5) -> tuple[np.ndarray, np.ndarray]:
-    w = np.linspace(iv.omega[0] * (1 - margin), iv.omega[1] * (1 + margin), n_w)
-    z = np.linspace(max(iv.zeta[0], 0.0), min(iv.zeta[1], 0.95), n_z)
-    return w, z
-
-
-def _score(S: Shaper, boxes: list[tuple[np.ndarray, np.ndarray]], weights: np.ndarray) -> list[float]:
-    out = []
-    for (w, zs), wk in zip(boxes, weights):
-        vmax = max(float(np.max(residual_vibration(S, w, float(z)))) for z in zs)
-        out.append(float(wk * vmax))
-    return out
-
-
-def config_lines(label: str, kind: str, mode: Mode, shaper: Shaper, axis: str = "x") -> list[str]:
-    """Klipper and RepRapFirmware lines for ``shaper`` (``kind`` designed at ``mode``)."""
-    lines = []
-    if kind in KLIPPER:
-        lines += ["# Klipper (printer.cfg)", "[input_shaper]", f"shaper_type_{axis}: {KLIPPER[kind]}",
-                  f"shaper_freq_{axis}: {mode.freq_hz:.2f}", f"damping_ratio_{axis}: {mode.zeta:.4f}"]
-    else:
-        lines.append(f"# Klipper: no built-in type for {label}; nearest is mzv or ei")
     T, A = shaper.impulses
-    if kind in RRF:
-        lines += ["; RepRapFirmware (config.g)", f'M593 P"{RRF[kind]}" F{mode.freq_hz:.2f} S{mode.zeta:.4f}']
+    c1, c2, c3 = smoothing_offsets(A, T)
+    return float(max(math.sqrt(2.0) * (scv * c1 + 0.5 * accel * c2), 0.5 * accel * c3))
+
+
+# ----------------------------------------------------------------------------- scoring
+
+
+@dataclass
+class _Scored:
+    st: ShaperType
+    damping: float
+    freqs: np.ndarray
+    vib: np.ndarray
+    per_mode: np.ndarray
+    fv: np.ndarray
+    sm: np.ndarray
+    ma: np.ndarray
+
+
+def machine_damping(boxes: list[ModeBox], share: float = 0.2) -> tuple[float, float, float]:
+    """Damping ratios to score with: the lowest, middle and highest of the main modes' intervals.
+
+    Main modes are those with at least ``share`` of the largest one's weight; the range is
+    clipped to [0.02, 0.3] (below, no printer frame is that lightly damped; above, every
+    firmware shaper's residual is already small).
+    """
+    main = [b for b in boxes if b.weight >= share] or boxes
+    lo = min(max(b.zeta[0], 0.02) for b in main)
+    hi = max(min(b.zeta[1], 0.3) for b in main)
+    lo, hi = min(lo, 0.3), max(hi, 0.02)
+    if hi < lo:
+        lo, hi = hi, lo
+    mid = float(np.median([min(max(b.mode.zeta, lo), hi) for b in main]))
+    return (lo, mid, hi)
+
+
+def _score_type(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray, boxes: list[ModeBox],
+                spectra: Spectra, dampings: tuple[float, ...], margin: float) -> _Scored:
+    A, T1 = st.impulses(1.0, damping)
+    T = fw.times(T1[None, :] / freqs[:, None])
+    if spectra:
+        # remaining vibrations on the measured spectra (Klipper's measure) at the machine's own damping
+        # range, with the spectrum stretched by +-margin (modes drift with position and load)
+        vib = np.zeros(freqs.size)
+        drift = (1.0 - margin, 1.0, 1.0 + margin) if margin > 0 else (1.0,)
+        for bins, psd in spectra:
+            b, p, total = _above_threshold(bins, psd)  # only these bins can count (exact)
+            thr = float(p.max()) * 0.05
+            V = vibration_grid(A, T, np.concatenate([b * d for d in drift]), np.asarray(dampings))
+            V = V.reshape(freqs.size, len(drift), b.size, len(dampings))
+            R = np.sum(np.maximum(V * p[None, None, :, None] - thr, 0.0), axis=2) / total  # [F, drift, zeta]
+            vib = np.maximum(vib, R.max(axis=(1, 2)))
+        fv = firmware_vibrations(A, T, spectra)  # Klipper's own measure: its test dampings, no drift
+        per = vib[:, None]
     else:
-        cum = np.cumsum(A)[:-1]
-        dts = np.diff(T)
-        lines += ["; RepRapFirmware (config.g), custom shaper: cumulative amplitudes H, impulse intervals T",
-                  'M593 P"custom" H' + ":".join(f"{c:.4f}" for c in cum) + " T" + ":".join(f"{d:.5f}" for d in dts)]
-    return lines
+        per = np.empty((freqs.size, len(boxes)))
+        for k, bx in enumerate(boxes):
+            fb, zb = bx.grid()
+            per[:, k] = bx.weight * vibration_grid(A, T, fb, zb).reshape(freqs.size, -1).max(axis=1)
+        vib = per.max(axis=1)
+        fv = np.full(freqs.size, np.nan)
+    return _Scored(st, damping, freqs, vib, per, fv, fw.smoothing(A, T), fw.max_accel(A, T))
 
 
-def recommend(ident: Identification, *, vtol: float = 0.05, margin: float = 0.05, printer: bool = True,
-              axis: str = "x") -> Calibration:
-    """Score every shaper family over the identified modes' uncertainty and pick one.
+def _grid(st: ShaperType, boxes: list[ModeBox], rel_step: float = 0.012) -> np.ndarray:
+    """Shaper frequencies to try: 1.2 % steps from half the lowest main mode to twice the highest (refined later)."""
+    main = [b for b in boxes if b.weight >= 0.2] or boxes
+    f_lo = min(b.mode.freq_hz for b in main)
+    f_hi = max(b.mode.freq_hz for b in main)
+    lo = max(st.min_freq, 0.5 * f_lo)
+    hi = min(st.max_freq, 2.0 * f_hi)
+    if hi <= lo:
+        return np.array([min(max(f_lo, st.min_freq), st.max_freq)])
+    n = min(int(math.log(hi / lo) / math.log1p(rel_step)) + 1, _MAX_GRID)
+    return _printable(np.geomspace(lo, hi, max(n, 2)), st)
+
+
+def _printable(freqs: np.ndarray, st: ShaperType) -> np.ndarray:
+    """Frequencies as the config lines print them (0.1 Hz), inside the type's range: what is scored is what runs."""
+    f = np.unique(np.round(freqs, 1))
+    return f[(f >= st.min_freq) & (f <= st.max_freq)]
+
+
+def _candidate(fw: Firmware, sc: _Scored, i: int) -> Candidate:
+    fv = float(sc.fv[i])
+    return Candidate(Setting(fw, sc.st, float(sc.freqs[i]), sc.damping), float(sc.vib[i]),
+                     tuple(float(x) for x in sc.per_mode[i]), None if math.isnan(fv) else fv, float(sc.sm[i]),
+                     float(sc.ma[i]))
+
+
+def _choose(vib: np.ndarray, fv: np.ndarray, sm: np.ndarray, vtol: float, max_smoothing: float | None,
+            ref: Candidate | None, slack: float = 0.01) -> tuple[int, str]:
+    """Index of the chosen setting and why (module docstring)."""
+    ok = np.ones(vib.size, dtype=bool)
+    if ref is not None and ref.firmware_vibration is not None:
+        rv, rs = ref.firmware_vibration, ref.smoothing
+        ok &= fv <= rv + slack
+        ok &= ~((rv <= fv) & (rs <= sm) & ((rv < fv) | (rs < sm)))  # not dominated by the tool's own pick
+    if max_smoothing is not None:
+        ok &= sm <= max_smoothing
+    feasible = ok & (vib <= vtol)
+    if feasible.any():
+        idx = np.flatnonzero(feasible)
+        return int(idx[np.lexsort((vib[idx], sm[idx]))[0]]), "least smoothing within the vibration target"
+    if ok.any():
+        idx = np.flatnonzero(ok)
+        return int(idx[np.argmin(vib[idx])]), "no setting reaches the vibration target; the most robust one"
+    return int(np.argmin(vib)), "no setting meets the constraints; the most robust one"
+
+
+def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | None = None, *, vtol: float = 0.05,
+                      max_smoothing: float | None = None, axis: str | None = None, margin: float = 0.05,
+                      slack: float = 0.01, extra_types: Sequence[ShaperType] = ()) -> Recommendation:
+    """Search every setting ``fw`` can run and choose one (module docstring).
 
     Parameters
     ----------
-    ident : Identification
-        From :func:`posicast.identify`.
+    fw : Firmware
+    boxes : list of ModeBox
+        From :func:`mode_boxes` (the modes of every file that must be covered).
+    spectra : list of (freqs, psd), optional
+        Klipper-normalised x + y + z spectra (``ResonanceData.firmware_freqs/psd``).
     vtol : float
-        Tolerable worst-case residual vibration, in (0, 1).
+        Worst-case vibration target, in (0, 1).
     margin : float
-        Extra relative frequency uncertainty added to each interval (a machine's
-        modes move with position and load), in [0, 0.5).
-    printer : bool
-        Rank feasible shapers by Klipper smoothing (True) or by duration.
-    axis : str
-        Axis letter in the config lines.
+        Frequency drift of the machine's modes (with spectra: the spectrum is stretched by it).
+    max_smoothing : float, optional
+        Upper bound on Klipper's smoothing, mm.
+    slack : float
+        How much more remaining vibration than the firmware tool's own pick (by the tool's
+        measure, 0..1) may be traded for less smoothing; 0 allows none.
+    axis : str, optional
+        Axis letter for the config lines.
+    extra_types : sequence of ShaperType
+        More types to try (Klipper master's parametric ``mzv(n, t)``, ``ei(v_tol)``).
     """
-    if not isinstance(ident, Identification):
-        raise TypeError("ident must be an Identification (from posicast.identify)")
+    if not isinstance(fw, Firmware):
+        raise TypeError(f"fw must be a posicast.firmware.Firmware, got {type(fw).__name__}")
+    boxes = v.sequence(boxes, "boxes", min_len=1)
+    if not all(isinstance(b, ModeBox) for b in boxes):
+        raise TypeError("boxes must be ModeBox objects (from posicast.identify.mode_boxes)")
+    if axis is not None:
+        axis = v.choice(axis, "axis", ("x", "y", "z"))
     vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
-    margin = v.real(margin, "margin")
-    if not 0.0 <= margin < 0.5:
-        raise ValueError(f"margin must be in [0, 0.5), got {margin:g}")
-    modes, ivs = ident.modes, ident.intervals
-    amps = np.asarray(ident.amplitudes if len(ident.amplitudes) == len(modes) else np.ones(len(modes)), float)
-    weights = amps / amps.max()
-    dom = int(np.argmax(amps))
-    boxes = [_box(iv, margin) for iv in ivs]
-    cands = []
-    for label, kind, params in FAMILIES:
-        S = design(kind, modes[dom], **params)
-        options = [(f"{label} @ {modes[dom].freq_hz:.1f} Hz", S, kind)]
-        if len(modes) > 1:
-            Sc = design(kind, modes[0], **params)
-            for m in modes[1:]:
-                Sc = Sc * design(kind, m, **params)
-            options.append((f"{label} x {len(modes)} modes", Sc, "custom"))
-        for lab, Sx, kd in options:
-            per = _score(Sx, boxes, weights)
-            cands.append(Candidate(lab, kd, Sx, max(per), Sx.duration, klipper_smoothing(Sx), per))
-    key = (lambda c: (c.smoothing, c.duration)) if printer else (lambda c: (c.duration, c.smoothing))
-    ok = sorted([c for c in cands if c.worst_vibration <= vtol], key=key)
-    rest = sorted([c for c in cands if c.worst_vibration > vtol], key=lambda c: c.worst_vibration)
-    ranked = ok + rest
-    best = ranked[0]
-    why = ["modes: " + "; ".join(f"{m.freq_hz:.2f} Hz [{iv.freq_hz[0]:.2f}, {iv.freq_hz[1]:.2f}], "
-                                   f"zeta {m.zeta:.3f} [{iv.zeta[0]:.3f}, {iv.zeta[1]:.3f}]" for m, iv in zip(modes, ivs)),
-           f"each frequency interval widened by +-{100 * margin:.0f} %; worst-case residual vibration over the boxes, "
-           f"weighted by mode share {np.round(weights, 2).tolist()}"]
-    if ok:
-        why.append(f"{len(ok)} of {len(cands)} candidates keep the worst case <= {100 * vtol:.0f} %; "
-                   f"{best.label} has the least {'smoothing' if printer else 'duration'} among them "
-                   f"(worst case {100 * best.worst_vibration:.1f} %, {1000 * best.duration:.1f} ms, "
-                   f"smoothing {best.smoothing:.3f} mm)")
+    if max_smoothing is not None:
+        max_smoothing = v.positive(max_smoothing, "max_smoothing")
+    slack = v.real(slack, "slack")
+    if not 0.0 <= slack <= 0.2:
+        raise ValueError(f"slack must be in [0, 0.2], got {slack:g}")
+    spectra = [_spectrum(sp, k) for k, sp in enumerate(v.sequence(spectra or [], "spectra"))]
+    margin = _margin(margin)
+    dampings = machine_damping(boxes)
+    types = dict(fw.types())
+    main = sorted((b for b in boxes if b.weight >= 0.2), key=lambda b: -b.weight)
+    for st in list(fw.extra_types([b.mode for b in main])) + list(extra_types):
+        types[st.written] = st
+    dom = max(boxes, key=lambda b: b.weight).mode
+    ref = _reference(fw, spectra) if spectra else None
+    scored: list[_Scored] = []
+    skipped: list[str] = []
+    for st in types.values():
+        designs = sorted({DEFAULT_DAMPING, round(min(max(dom.zeta, 0.01), 0.3), 3)})
+        designs = [d for d in designs if d < st.max_damping]
+        if not designs:
+            skipped.append(f"{st.written} (valid for damping < {st.max_damping:g} only)")
+            continue
+        freqs = _grid(st, boxes)
+        mine = [_score_type(fw, st, d, freqs, boxes, spectra, dampings, margin) for d in designs]
+        # refine around this type's choice: +-1.5 % in 0.2 % steps
+        k, _ = _choose(np.concatenate([m.vib for m in mine]), np.concatenate([m.fv for m in mine]),
+                       np.concatenate([m.sm for m in mine]), vtol, max_smoothing, ref, slack)
+        at = mine[k // freqs.size]
+        f0 = float(freqs[k % freqs.size])
+        fine = _printable(f0 * (1.0 + 0.002 * np.arange(-7, 8)), st)
+        scored += mine + ([_score_type(fw, st, at.damping, fine, boxes, spectra, dampings, margin)] if fine.size else [])
+    if not scored:
+        raise ValueError(f"no {fw.name} shaper type is valid here: " + "; ".join(skipped))
+    if ref is not None:  # the tool's own pick is always eligible: at worst posicast agrees with it
+        rs = ref.setting
+        scored.append(_score_type(fw, rs.shaper_type, rs.damping, np.array([rs.freq]), boxes, spectra, dampings,
+                                  margin))
+        ref = Candidate(rs, float(scored[-1].vib[0]), (float(scored[-1].vib[0]),), ref.firmware_vibration,
+                        ref.smoothing, ref.max_accel)
+    vib = np.concatenate([s.vib for s in scored])
+    fv = np.concatenate([s.fv for s in scored])
+    sm = np.concatenate([s.sm for s in scored])
+    where = [(s, i) for s in scored for i in range(s.freqs.size)]
+    k, why = _choose(vib, fv, sm, vtol, max_smoothing, ref, slack)
+    best = _candidate(fw, *where[k])
+    per_type: dict[str, Candidate] = {}
+    for name in types:
+        mine = [s for s in scored if s.st.written == name]
+        if not mine:
+            continue
+        loc = [(s, i) for s in mine for i in range(s.freqs.size)]
+        kk, _ = _choose(np.concatenate([s.vib for s in mine]), np.concatenate([s.fv for s in mine]),
+                        np.concatenate([s.sm for s in mine]), vtol, max_smoothing, ref, slack)
+        per_type[name] = _candidate(fw, *loc[kk])
+    measure = (f"remaining vibration on the measured spectrum, worst over damping {dampings[0]:.3f}-{dampings[2]:.3f} "
+               f"(the identified range) and a +-{100 * margin:.0f} % frequency drift" if spectra else
+               "residual vibration over the modes' 95 % boxes")
+    reasoning = [f"{fw.name}: {why}: {best.label}; worst case {100 * best.vibration:.1f} % (target {100 * vtol:.0f} %), "
+                 f"smoothing {best.smoothing:.3f} mm, max_accel {best.max_accel:.0f} mm/s^2",
+                 f"worst case = {measure}"]
+    if ref is not None and ref.firmware_vibration is not None and best.firmware_vibration is not None:
+        reasoning.append(f"{fw.name}'s own tool would pick {ref.label} (its remaining vibrations "
+                         f"{100 * ref.firmware_vibration:.1f} %, smoothing {ref.smoothing:.3f} mm, worst case "
+                         f"{100 * ref.vibration:.1f} %); posicast's pick has {100 * best.firmware_vibration:.1f} % "
+                         "by the same measure")
+    reasoning += [f"skipped {s}" for s in skipped]
+    return Recommendation(fw, axis, best, per_type, ref, fw.config(best.setting, axis or "x"), reasoning)
+
+
+def _spectrum(sp: Any, k: int) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        f, p = sp
+    except (TypeError, ValueError):
+        raise TypeError(f"spectra[{k}] must be a pair (freqs, psd)") from None
+    f, p = v.strict_real_array(f, f"spectra[{k}] freqs"), v.strict_real_array(p, f"spectra[{k}] psd")
+    if f.ndim != 1 or f.shape != p.shape or f.size < 4:
+        raise ValueError(f"spectra[{k}]: freqs and psd must be 1-D of the same length (at least 4)")
+    if np.any(f < 0) or np.any(np.diff(f) <= 0) or np.any(p < 0) or not np.any(p > 0):
+        raise ValueError(f"spectra[{k}]: freqs must increase from >= 0 Hz and psd must be >= 0, not all 0")
+    return f, p
+
+
+def _reference(fw: Firmware, spectra: Spectra) -> Candidate | None:
+    """The firmware tool's own pick (Klipper's rules; for other firmware, the same rules on its types)."""
+    if isinstance(fw, Klipper):
+        pick, _ = klipper_recommendation(fw, spectra)
     else:
-        why.append(f"no candidate reaches {100 * vtol:.0f} %; {best.label} is the most robust "
-                   f"(worst case {100 * best.worst_vibration:.1f} %)")
-    base_kind = best.kind
-    cfg = config_lines(best.label, base_kind, modes[dom], best.shaper, axis)
-    if base_kind not in KLIPPER:
-        kl = next((c for c in ranked if c.kind in KLIPPER), None)
-        if kl is not None:
-            why.append(f"Klipper has no type for {best.label}; its best built-in option is {kl.label} "
-                       f"(worst case {100 * kl.worst_vibration:.1f} %)")
-            cfg += [ln for ln in config_lines(kl.label, kl.kind, modes[dom], kl.shaper, axis)
-                    if not ln.startswith(("; RepRap", "M593"))]
-            cfg = [ln for ln in cfg if not ln.startswith("# Klipper: no built-in")]
-    return Calibration(modes, ivs, best.shaper, cfg, ranked, why, ident, best.label)
+        names = tuple(n for n, st in fw.types().items() if DEFAULT_DAMPING < st.max_damping)
+        if not names:
+            return None
+        pick, _ = klipper_recommendation(fw, spectra, types=names)  # type: ignore[arg-type]
+    return Candidate(pick.setting, math.inf, (), pick.vibrations, pick.smoothing, pick.max_accel)  # scored later
 
 
-def calibrate(path: str | Path, *, input: str | None = None, output: str | None = None, axis: str = "auto",
-              n_modes: int | str = "auto", method: str | None = None, vtol: float = 0.05, margin: float = 0.05,
-              band: tuple[float, float] | None = None, printer: bool = True) -> Calibration:
-    """Identify the modes in a data file and recommend a shaper with config lines.
+# ----------------------------------------------------------------------------- posicast's optimum
 
-    Parameters
-    ----------
-    path : str or Path
-        CSV (time column plus signals), Klipper raw accelerometer log
-        (``#time,accel_x,accel_y,accel_z``) or Klipper resonance PSD file.
-    input, output : str, optional
-        Column names for input-output CSV data (then the OE estimator runs).
-    axis : {"auto", "x", "y", "z", "all"}
-        Klipper logs: one axis, or the projection of all three on their principal direction.
-    n_modes : int or "auto"
-        Modes to fit; ``"auto"`` (default): BIC for OE, up to 2 peaks for PSD data.
-    method : str, optional
-        Override the estimator (default ``"oe"`` with an input, ``"psd"`` without).
-    vtol, margin, printer : see :func:`recommend`.
-    band : (float, float), optional
-        Frequency band (Hz) for output-only fits (default 5 .. 0.45 fs, Klipper sweeps 5-133 Hz).
+
+OPTIMUM_KINDS: list[tuple[str, dict[str, Any]]] = [("zv", {}), ("mzv", {}), ("zvd", {}), ("ei", {"vtol": 0.05}),
+                                                   ("ei2", {"vtol": 0.05}), ("ei3", {"vtol": 0.05})]
+
+
+def optimum(boxes: list[ModeBox], *, vtol: float = 0.05) -> tuple[Shaper, float, str]:
+    """posicast's shortest exact design within ``vtol`` over the boxes (one mode or all of them convolved).
+
+    Returns ``(shaper, worst_vibration, description)``; the most robust when none is within ``vtol``.
     """
-    ds = load_csv(path)
-    notes = list(ds.notes)
-    ax = "x" if axis in ("auto", "all") else axis
-    if ds.kind == "klipper_psd":
-        col = f"psd_{axis}" if axis in ("x", "y", "z") else ("psd_xyz" if "psd_xyz" in ds.columns else list(ds.columns)[0])
-        from .estimators import _psd
-
-        P = ds.column(col)
-        nm = 2 if n_modes == "auto" else v.integer(n_modes, "n_modes", 1)
-        lo, hi = band if band is not None else (max(float(ds.t[0]), 5.0), float(ds.t[-1]))
-        ident = _psd(np.zeros(2), float("nan"), nm, band=(lo, hi), excitation_slope=0.0, freqs=ds.t, psd=P)
-        ident.notes.append("Klipper PSD file: the PSD was already divided by nothing; excitation assumed flat")
-    elif input is not None or method in ("oe", "arx", "freq"):
-        if input is None or output is None:
-            raise ValueError("input and output columns are both needed for input-output data (--input, --output)")
-        u, y = ds.column(input), ds.column(output)
-        ident = identify(ds.t, u, y, n_modes=n_modes, method=method or "oe")
-    else:
-        if ds.kind == "klipper_raw":
-            y = ds.projection(axis)
-            slope = 2.0
-        else:
-            if output is None:
-                raise ValueError("output column needed for output-only CSV data (--output)")
-            y, slope = ds.column(output), 0.0
-        nm = 2 if n_modes == "auto" else v.integer(n_modes, "n_modes", 1)
-        b = band if band is not None else (5.0, min(133.0 if ds.kind == "klipper_raw" else 0.45 * ds.fs, 0.45 * ds.fs))
-        ident = identify(ds.t, None, y, n_modes=nm, method=method or "psd", band=b, excitation_slope=slope)
-    cal = recommend(ident, vtol=vtol, margin=margin, printer=printer, axis=ax)
-    cal.notes = notes
-    return cal
+    vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
+    dom = max(boxes, key=lambda b: b.weight)
+    options: list[tuple[str, Shaper]] = []
+    for kind, params in OPTIMUM_KINDS:
+        try:
+            S = design(kind, dom.mode, **params)
+        except ValueError:
+            continue
+        options.append((f"{kind} at {dom.mode.freq_hz:.2f} Hz", S))
+        if len(boxes) > 1:
+            try:
+                Sc = design(kind, boxes[0].mode, **params)
+                for b in boxes[1:]:
+                    Sc = Sc * design(kind, b.mode, **params)
+            except ValueError:
+                continue
+            options.append((f"{kind} convolved over {len(boxes)} modes", Sc))
+    best: tuple[float, float, str, Shaper] | None = None
+    for label, S in options:
+        T, A = S.impulses
+        worst = max(b.weight * float(vibration_grid(A, T, *b.grid()).max()) for b in boxes)
+        key = (0.0 if worst <= vtol else 1.0, S.duration if worst <= vtol else worst)
+        if best is None or key < (best[0], best[1]):
+            best = (key[0], key[1], label, S)
+    if best is None:
+        raise ValueError("no posicast design is valid for these modes")
+    S = best[3]
+    T, A = S.impulses
+    worst = max(b.weight * float(vibration_grid(A, T, *b.grid()).max()) for b in boxes)
+    return S, worst, best[2]

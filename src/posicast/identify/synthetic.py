@@ -30,8 +30,10 @@ from scipy import signal
 
 from .. import _validate as v
 from ..modes import Mode
+from .excitation import ResonanceTest, commanded_acceleration
 
-__all__ = ["INPUTS", "excitation", "simulate", "sensor", "synthetic", "SyntheticData", "klipper_sweep", "klipper_log"]
+__all__ = ["INPUTS", "excitation", "simulate", "sensor", "synthetic", "SyntheticData", "klipper_sweep", "klipper_log",
+           "klipper_record", "klipper_dataset", "klipper_resonances"]
 
 INPUTS = ("step", "impulse", "ramp", "harmonic", "random_binary", "chirp")
 G = 9.80665
@@ -44,6 +46,31 @@ def _modes(modes: Any) -> list[Mode]:
     if not out or not all(isinstance(m, Mode) for m in out):
         raise TypeError("modes must be a posicast.Mode or a non-empty list of Mode")
     return out
+
+
+#: Most samples a synthetic record may hold (about 400 MB per signal).
+MAX_SAMPLES = 50_000_000
+
+
+def _samples(n: Any, name: str = "n", minimum: int = 2) -> int:
+    n = v.integer(n, name, minimum)
+    if n > MAX_SAMPLES:
+        raise ValueError(f"{name} = {n} samples would need about {8 * n * 6 / 2**30:.3g} GiB; at most "
+                         f"{MAX_SAMPLES} are generated (lower {name} or fs)")
+    return n
+
+
+def _rate(fs: Any, ms: Sequence[Mode] = ()) -> float:
+    """A sample rate in [1e-6, 1e9] Hz, at least 1e-6 of the fastest mode's frequency (exact ZOH sampling)."""
+    fs = v.positive(fs, "fs")
+    low = max([1e-6] + [m.omega / (2 * math.pi) * 1e-6 for m in ms])
+    if not low <= fs <= 1e9:
+        raise ValueError(f"fs must be in [{low:.3g}, 1e9] Hz (at least a millionth of the fastest mode), got {fs:g}")
+    return fs
+
+
+def _seed(seed: Any) -> int | None:
+    return None if seed is None else v.integer(seed, "seed", 0)
 
 
 def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: int = 0,
@@ -75,9 +102,16 @@ def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: 
     >>> excitation("step", 5, 400.0, delay=2).tolist()
     [0.0, 0.0, 1.0, 1.0, 1.0]
     """
-    n = v.integer(n, "n", 2)
-    fs = v.positive(fs, "fs")
+    n = _samples(n)
+    fs = _rate(fs)
     delay = v.integer(delay, "delay", 0)
+    seed = _seed(seed)
+    if not isinstance(kind, str) or kind not in INPUTS:
+        raise ValueError(f"kind must be one of {', '.join(INPUTS)}; got {kind!r}")
+    if period is not None:
+        period = v.positive(period, "period")
+        if period * fs > 1e15:
+            raise ValueError(f"period must be at most 1e15 samples (1e15 / fs = {1e15 / fs:.3g} s), got {period:g}")
     k = np.arange(n)
     if kind == "step":
         if period is None:
@@ -141,7 +175,8 @@ def simulate(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: str = "
     u = v.real_array(u, "u")
     if u.ndim != 1:
         raise ValueError("u must be one-dimensional")
-    fs = v.positive(fs, "fs")
+    _samples(u.size, "u's length", 1)
+    fs = _rate(fs, ms)
     if output not in ("position", "acceleration"):
         raise ValueError(f"output must be 'position' or 'acceleration', got {output!r}")
     g = np.ones(len(ms)) if gains is None else v.real_array(gains, "gains")
@@ -176,6 +211,8 @@ def sensor(y: Any, *, fs: float, noise: float = 0.0, density: float = 0.0, bits:
     out = y + total * rng.standard_normal(y.shape) if total > 0 else y.copy()
     if bits is not None:
         bits = v.integer(bits, "bits", 2)
+        if bits > 52:
+            raise ValueError(f"bits must be in [2, 52] (a converter's resolution), got {bits}")
         fsc = 1.25 * float(np.max(np.abs(y))) if full_scale is None else v.positive(full_scale, "full_scale")
         if fsc == 0:
             return out
@@ -230,11 +267,13 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     ((400,), 400)
     """
     ms = _modes(modes)
-    fs = v.positive(fs, "fs")
-    n = v.integer(n, "n", 4)
+    fs = _rate(fs, ms)
+    n = _samples(n, "n", 4)
+    if not isinstance(input, str) or input not in INPUTS:
+        raise ValueError(f"input must be one of {', '.join(INPUTS)}; got {input!r}")
     if not 0.0 <= v.real(input_noise, "input_noise") < 1.0:
         raise ValueError(f"input_noise must be in [0, 1), got {input_noise:g}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_seed(seed))
     u = excitation(input, n, fs, seed=int(rng.integers(2**31)), delay=delay, period=period)
     y0 = simulate(ms, u, fs, output=output, gains=gains)
     y = sensor(y0, fs=fs, noise=noise, density=density, bits=bits, full_scale=full_scale, rng=rng)
@@ -245,56 +284,123 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     return SyntheticData(np.arange(n) / fs, u_rec, y, y0, ms, fs)
 
 
-def klipper_sweep(fs: float, *, f_min: float = 5.0, f_max: float = 133.0, hz_per_sec: float = 1.0,
-                  accel_per_hz: float = 75.0) -> np.ndarray:
-    """Commanded acceleration [mm/s^2] of Klipper's ``TEST_RESONANCES`` sweep.
+def klipper_sweep(fs: float, *, f_min: float = 5.0, f_max: float = 135.0, hz_per_sec: float = 1.0,
+                  accel_per_hz: float = 60.0, method: str = "sweeping", sweeping_accel: float = 400.0,
+                  sweeping_period: float = 1.2) -> np.ndarray:
+    """Commanded acceleration [mm/s^2] of Klipper's ``TEST_RESONANCES`` (see :mod:`.excitation`)."""
+    test = ResonanceTest(method, f_min, f_max, hz_per_sec, accel_per_hz, sweeping_accel, sweeping_period)
+    return commanded_acceleration(test, fs)[1]
 
-    Klipper (resonance_tester.py) sweeps the frequency linearly at
-    ``hz_per_sec`` and, in each half period, accelerates at
-    ``+-accel_per_hz * f``: a square wave of rising frequency and amplitude.
+
+def klipper_record(modes: Mode | Sequence[Mode], *, fs: float = 3200.0, gains: Sequence[float] | None = None,
+                   test: ResonanceTest | None = None, direction: Sequence[float] = (1.0, 0.0, 0.0),
+                   density: float = 20.0, seed: int | None = None, lead: float = 0.5, clip: float | None = None,
+                   **test_options: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The accelerometer record of a Klipper resonance test: ``(t, accel[n, 3])`` in s and mm/s^2.
+
+    The commanded acceleration of ``test`` (default :meth:`ResonanceTest.klipper`, or
+    its fields as keywords: ``hz_per_sec=2``, ``method="pulse"`` for the older test, ...)
+    drives the toolhead through ``1 + sum_k gains_k (F_k(s) - 1)``, each mode a spring
+    between the motor and the toolhead, ``F_k = (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2)``
+    (unit DC gain: the toolhead follows the command at low frequency).  The result is
+    projected on ``direction`` (x, y, z), white sensor noise of ``density``
+    (mm/s^2)/sqrt(Hz) is added on each axis, then gravity on z, ADXL345 quantisation
+    (3.9 mg per step) and its +-16 g range (or ``clip`` mm/s^2, to make clipped data).
+    ``lead`` seconds of rest precede the test.  With empty ``modes`` (``[]``) and
+    ``test="none"`` the record is sensor noise only.
     """
-    fs = v.positive(fs, "fs")
-    dur = (f_max - f_min) / hz_per_sec
-    t = np.arange(int(dur * fs)) / fs
-    f = f_min + hz_per_sec * t
-    phase = 2.0 * math.pi * (f_min * t + 0.5 * hz_per_sec * t * t)
-    return accel_per_hz * f * np.where(np.sin(phase) >= 0.0, 1.0, -1.0)
+    rng = np.random.default_rng(_seed(seed))
+    if isinstance(test, str) and test == "none":
+        fs = _rate(fs)
+        a = np.zeros(_samples(int(round(60.0 * fs)), "60 s at fs"))
+        ms: list[Mode] = []
+    else:
+        ms = _modes(modes)
+        if test is None:
+            method = test_options.pop("method", "sweeping")
+            test = (ResonanceTest.klipper(**test_options) if method == "sweeping"
+                    else ResonanceTest.legacy(**test_options))
+        elif test_options:
+            raise TypeError("give either test= or its fields as keywords, not both")
+        if not isinstance(test, ResonanceTest):
+            raise TypeError("test must be a posicast.identify.ResonanceTest")
+        fs = _rate(fs, ms)
+        _, a_cmd = commanded_acceleration(test, fs)
+        lead = v.real(lead, "lead")
+        if not 0.0 <= lead <= 60.0:
+            raise ValueError(f"lead must be in [0, 60] s, got {lead:g}")
+        a_cmd = np.concatenate((np.zeros(int(round(lead * fs))), a_cmd, np.zeros(int(0.2 * fs))))
+        g = np.full(len(ms), 1.0) if gains is None else v.real_array(gains, "gains")
+        if g.shape != (len(ms),):
+            raise ValueError(f"gains must have one entry per mode ({len(ms)})")
+        a = a_cmd * (1.0 - float(np.sum(g)))
+        for m, gk in zip(ms, g):
+            num = [0.0, 2.0 * m.zeta * m.omega * gk, m.omega**2 * gk]
+            den = [1.0, 2.0 * m.zeta * m.omega, m.omega**2]
+            a = a + signal.lfilter(*_zoh(num, den, fs), a_cmd)
+    d = v.strict_real_array(direction, "direction")
+    if d.shape != (3,) or not np.linalg.norm(d) > 0:
+        raise ValueError(f"direction must be 3 numbers (x, y, z), not all 0, got {d.tolist()}")
+    d = d / np.linalg.norm(d)
+    acc = np.outer(a, d) + v.real(density, "density") * math.sqrt(fs / 2.0) * rng.standard_normal((a.size, 3))
+    acc[:, 2] += G * 1000.0
+    lsb = 0.0039 * G * 1000.0
+    lim = 16 * G * 1000.0 if clip is None else v.positive(clip, "clip")
+    acc = np.clip(np.round(acc / lsb) * lsb, -lim, lim)
+    return np.arange(a.size) / fs, acc
 
 
 def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3200.0,
-                gains: Sequence[float] | None = None, f_min: float = 5.0, f_max: float = 133.0,
-                hz_per_sec: float = 1.0, accel_per_hz: float = 75.0, direction: Sequence[float] = (1.0, 0.0, 0.0),
-                density: float = 0.0, seed: int | None = None, jitter: float = 0.0) -> Path:
-    """Write a synthetic Klipper raw accelerometer log of a resonance test.
+                jitter: float = 0.0, seed: int | None = None, **options: Any) -> Path:
+    """Write :func:`klipper_record` as a Klipper raw log (``#time,accel_x,accel_y,accel_z``).
 
-    The toolhead acceleration is the sweep of :func:`klipper_sweep` through
-    ``1 + sum_k gains_k (F_k(s) - 1)`` (each mode a spring between motor and
-    toolhead, unit DC gain), projected on ``direction`` (x, y, z), plus sensor
-    noise of ``density`` mm/s^2/sqrt(Hz) on each axis, and gravity on z.
-    Columns ``#time,accel_x,accel_y,accel_z`` in mm/s^2 as Klipper writes them.
-    ``jitter`` (s) perturbs the time stamps, as real logs have.
+    Time stamps start at 1000 s as Klipper's do; ``jitter`` (s) perturbs them, as real
+    logs have.  ``options`` are :func:`klipper_record`'s.
     """
-    ms = _modes(modes)
-    fs = v.positive(fs, "fs")
-    a_cmd = klipper_sweep(fs, f_min=f_min, f_max=f_max, hz_per_sec=hz_per_sec, accel_per_hz=accel_per_hz)
-    g = np.full(len(ms), 1.0) if gains is None else v.real_array(gains, "gains")
-    a = a_cmd * (1.0 - float(np.sum(g)))
-    for m, gk in zip(ms, g):
-        # toolhead acceleration through a spring: (2 zeta w s + w^2)/(s^2 + 2 zeta w s + w^2)
-        num = [0.0, 2.0 * m.zeta * m.omega * gk, m.omega**2 * gk]
-        den = [1.0, 2.0 * m.zeta * m.omega, m.omega**2]
-        a = a + signal.lfilter(*_zoh(num, den, fs), a_cmd)
-    d = np.asarray(direction, dtype=float)
-    d = d / np.linalg.norm(d)
-    rng = np.random.default_rng(seed)
-    acc = np.outer(a, d) + density * math.sqrt(fs / 2.0) * rng.standard_normal((a.size, 3))
-    acc[:, 2] += G * 1000.0
-    t = 1000.0 + np.arange(a.size) / fs
-    if jitter > 0:
-        t = t + jitter * rng.uniform(-0.5, 0.5, t.size)
-    path = Path(path)
-    data = np.column_stack([t, acc])
+    path = v.path_for_output(path, "path", (".csv", ".txt"))
+    t, acc = klipper_record(modes, fs=fs, seed=seed, **options)
+    t = 1000.0 + t
+    if v.real(jitter, "jitter") > 0:
+        t = t + jitter * np.random.default_rng(None if seed is None else seed + 1).uniform(-0.5, 0.5, t.size)
     with open(path, "w", encoding="utf-8") as fh:
         fh.write("#time,accel_x,accel_y,accel_z\n")
-        np.savetxt(fh, data, fmt=["%.6f", "%.3f", "%.3f", "%.3f"], delimiter=",")
+        np.savetxt(fh, np.column_stack([t, acc]), fmt=["%.6f", "%.3f", "%.3f", "%.3f"], delimiter=",")
+    return path
+
+
+def klipper_dataset(modes: Mode | Sequence[Mode], *, axis: str | None = "x", **options: Any) -> Any:
+    """:func:`klipper_record` as an in-memory :class:`~posicast.identify.Dataset` (no file)."""
+    from .data import Dataset
+
+    t, acc = klipper_record(modes, **options)
+    fs = float(options.get("fs", 3200.0))
+    return Dataset(f"synthetic_raw_data_{axis or 'unknown'}", "klipper_raw", t,
+                   {"accel_x": acc[:, 0], "accel_y": acc[:, 1], "accel_z": acc[:, 2]}, fs, axis=axis,
+                   klipper_output="raw_data")
+
+
+def klipper_resonances(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3200.0,
+                       max_freq_out: float | None = None, **options: Any) -> Path:
+    """Write a ``resonances_<axis>_*.csv`` as Klipper's ``TEST_RESONANCES`` does, from :func:`klipper_record`.
+
+    Klipper's Welch estimate (Kaiser window, beta 6, 0.5 s segments rounded up to a power
+    of two, half overlap) of each axis and their sum, rows ``%.1f`` then ``%.3e``, up to
+    ``max_freq_out`` (default 1.5 x the test's ``max_freq``).  ``modes=[]`` with
+    ``test="none"`` writes the spectrum of sensor noise alone.
+    """
+    from .spectral import welch_psd
+
+    path = v.path_for_output(path, "path", (".csv", ".txt"))
+    t, acc = klipper_record(modes, fs=fs, **options)
+    test = options.get("test")
+    top = options.get("max_freq", test.max_freq if isinstance(test, ResonanceTest) else 135.0)
+    hi = 1.5 * float(top) if max_freq_out is None else v.positive(max_freq_out, "max_freq_out")
+    cols = [welch_psd(acc[:, j] - acc[:, j].mean(), fs, 2.0) for j in range(3)]
+    f = cols[0][0]
+    P = np.column_stack([c[1] for c in cols])
+    keep = f <= hi
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("freq,psd_x,psd_y,psd_z,psd_xyz\n")
+        for fk, row in zip(f[keep], P[keep]):
+            fh.write(f"{fk:.1f}," + ",".join(f"{x:.3e}" for x in row) + f",{row.sum():.3e}\n")
     return path
