@@ -216,7 +216,7 @@ def main(argv=None) -> int:
         print(f"| {f0:.0f} | {p:.3g} | {m:.3g} | {p / m:.3f} |")
 
     durations = (60.0,) if args.quick else (60.0, 600.0)
-    repeats = {60.0: 1 if args.quick else 3, 600.0: 1}
+    repeats = {60.0: 1 if args.quick else 5, 600.0: 1 if args.quick else 3}
     tmp = tempfile.TemporaryDirectory() if args.keep is None else contextlib.nullcontext(args.keep)
     rows = []
     with tmp as d:

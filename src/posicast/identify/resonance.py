@@ -148,11 +148,10 @@ def _from_psd(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
 
 def _from_raw(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
     fs = float(ds.fs)
-    A = np.column_stack([ds.column(f"accel_{a}") for a in "xyz"])
-    A = A - A.mean(axis=0)
+    A = np.column_stack([ds.column(f"accel_{a}") for a in "xyz"])  # each estimator removes its own mean
     # the sweep is tracked on the axis that moves most
     lead = int(np.argmax(np.var(A[:: max(1, A.shape[0] // 50000)], axis=0)))
-    sweep = estimate_sweep(A[:, lead], fs)
+    sweep = estimate_sweep(A[:, lead] - A[:, lead].mean(), fs)
     if sweep is None:
         raise NoModeFound(f"no resonance found in {ds.path}: the log holds no frequency sweep, only noise "
                           "(was TEST_RESONANCES or SHAPER_CALIBRATE running while it was recorded?)")

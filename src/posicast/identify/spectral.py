@@ -421,15 +421,19 @@ def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> t
     block.  A 1 % cosine taper at the ends keeps a record that does not start or end
     at rest from leaking.  Returns ``(freqs, psd, bins_per_block)``.
     """
-    X = np.atleast_2d(np.asarray(X, dtype=float).T).T
+    X = np.atleast_2d(np.asarray(X).T).T
     n = X.shape[0]
-    taper = signal.windows.tukey(n, 0.02)
+    taper = signal.windows.tukey(n, 0.02).astype(np.float32)
     nfft = sp_fft.next_fast_len(n, real=True)
     # single precision: the blocks average hundreds of bins, 1e-7 relative rounding is far below their scatter
-    Xc = ((X - X.mean(axis=0)) * taper[:, None]).astype(np.float32)
+    Xc = X.astype(np.float32)
+    Xc -= X.mean(axis=0).astype(np.float32)
+    Xc *= taper[:, None]
     Z = sp_fft.rfft(Xc, nfft, axis=0, workers=-1)
-    P = np.sum(Z.real.astype(float) ** 2 + Z.imag.astype(float) ** 2, axis=1)
-    P *= 2.0 / (fs * float(np.sum(taper ** 2)))
+    del Xc
+    P = np.einsum("ij,ij->i", Z.view(np.float32).reshape(Z.shape[0], -1), Z.view(np.float32).reshape(Z.shape[0], -1),
+                  dtype=np.float64)
+    P *= 2.0 / (fs * float(np.sum(taper.astype(float) ** 2)))
     k = max(1, int(round(resolution * nfft / fs)))
     m = (P.size - 1) // k
     blocks = P[1:1 + m * k].reshape(m, k).mean(axis=1)
