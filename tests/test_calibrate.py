@@ -228,3 +228,21 @@ def test_bad_calibrate_arguments(tmp_path, capsys) -> None:
         assert main(["calibrate", f] + argv) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and msg in err, err
+
+
+def test_reprapfirmware_recording_is_read_and_refused_with_a_way(tmp_path) -> None:
+    """RepRapFirmware's M956 file (Accelerometers.cpp): "Sample,X,Y,Z" in g, closed by "Rate <Hz>, overflows <n>"."""
+    path = tmp_path / "0_2026-11-24_15.00.00.csv"
+    fs, f0, z = 1344.0, 47.0, 0.05
+    k = np.arange(2000)
+    w = 2 * math.pi * f0
+    ring = np.exp(-z * w * k / fs) * np.cos(w * math.sqrt(1 - z * z) * k / fs)  # a free decay, in g
+    path.write_text("Sample,X,Y,Z\n" + "".join(f"{i},{x:.4f},0.0000,1.0000\n" for i, x in zip(k, ring))
+                    + "Rate 1344, overflows 0\n")
+    ds = load_csv(path)
+    assert ds.kind == "rrf_accelerometer" and ds.fs == 1344.0 and ds.t[-1] == pytest.approx(1999 / 1344)
+    assert ds.columns["accel_z"][0] == pytest.approx(9806.65) and list(ds.columns) == ["accel_x", "accel_y", "accel_z"]
+    with pytest.raises(ValueError, match="method decay"):
+        posicast.calibrate(path)
+    r = posicast.identify(ds.t, None, ds.columns["accel_x"], method="decay")  # the way the message gives
+    assert r.modes[0].freq_hz == pytest.approx(f0, rel=1e-3) and r.modes[0].zeta == pytest.approx(z, rel=0.02)

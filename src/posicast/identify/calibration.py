@@ -351,7 +351,7 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         path = item.path if isinstance(item, Dataset) else str(item)
         say(f"reading {Path(path).name}")
         ds = item if isinstance(item, Dataset) else load_csv(item)
-        if ds.kind in ("klipper_raw", "klipper_psd"):
+        if ds.kind in ("klipper_raw", "klipper_psd", "rrf_accelerometer"):  # the last one is refused, with a way
             rd = resonance_data(ds, axis)
             fr = FileResult(str(path), rd.axis, rd.kind, resonance=rd, label=lab)
             say(f"identifying modes in {Path(path).name} ({rd.spectrum.band[0]:.0f}-{rd.spectrum.band[1]:.0f} Hz)")

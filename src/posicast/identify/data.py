@@ -22,6 +22,9 @@ column; nothing is returned half-parsed.
   ``freq,psd_x,psd_y,psd_z,psd_xyz`` with or without a leading ``#``, Kalico's
   extra ``accel_per_hz`` column, and one column per shaper (``zv(59.0)``) in
   calibration files, kept apart in :attr:`Dataset.shaper_columns`.
+* RepRapFirmware accelerometer file (``M956``, Accelerometers.cpp): ``Sample,X,Y,Z``
+  (the axes recorded, in g) closed by ``Rate <Hz>, overflows <n>``; kind
+  ``"rrf_accelerometer"``, columns ``accel_x`` ... in mm/s^2, time from the rate.
 
 Uneven sampling: steps within 1 % of the median are taken as they are (the
 rate from the mean step).  Time stamps that all lie within half a step of the
@@ -74,6 +77,9 @@ _NUM = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinit
 _FIXED = re.compile(rb"\s*[+-]?\d*\.(\d{1,15})\s*")
 _SHAPER = re.compile(r"([a-z0-9_]+)\(\s*([0-9]+(?:\.[0-9]*)?)\s*\)")
 KLIPPER_RAW = ("time", "accel_x", "accel_y", "accel_z")
+#: RepRapFirmware's M956 accelerometer files: "Sample,X,Y,Z" (axes as recorded, in g), then "Rate <Hz>, overflows <n>".
+_RRF_RATE = re.compile(rb"Rate (\d+(?:\.\d+)?), overflows (\d+)")
+_G = 9806.65  # mm/s^2
 KLIPPER_PSD = ("freq", "psd_x", "psd_y", "psd_z", "psd_xyz")
 _KLIPPER_PREFIX = re.compile(r"(?:^|[^a-z0-9])(resonances|calibration_data|raw_data)_(.*)", re.IGNORECASE)
 
@@ -101,9 +107,10 @@ class Dataset:
     ----------
     path : str
         The file.
-    kind : {"csv", "klipper_raw", "klipper_psd"}
+    kind : {"csv", "klipper_raw", "klipper_psd", "rrf_accelerometer"}
         ``"klipper_psd"``: ``t`` holds the frequencies (Hz) and ``columns`` the PSDs
-        (lower-case names ``psd_x`` ... ``psd_xyz``).
+        (lower-case names ``psd_x`` ... ``psd_xyz``).  ``"rrf_accelerometer"``:
+        RepRapFirmware's M956 recording, ``columns`` ``accel_x`` ... in mm/s^2.
     t : ndarray
         Time (s) from the first sample, uniform (resampled if needed); frequencies for PSD files.
     columns : dict of str to ndarray
@@ -203,6 +210,7 @@ class _Table:
         self._rows: list[int] = []  # row index where a run of consecutive file lines starts
         self._lines: list[int] = []  # its line number
         self.notes: list[str] = []
+        self.rate: float | None = None  # RepRapFirmware's closing "Rate <Hz>, overflows <n>" line
 
     def col(self, j: int) -> np.ndarray:
         return self.block[j, : self.n]
@@ -504,6 +512,12 @@ def _parse_block(tab: _Table, c: bytes, nl: int, line0: int, st: _State, remaini
         s = s.strip()
         if not s or s[:1] == b"#":
             continue
+        m = _RRF_RATE.fullmatch(s) if header[:1] == ["Sample"] else None
+        if m:  # RepRapFirmware's M956 ends its file with the sample rate (Accelerometers.cpp)
+            tab.rate = float(m.group(1))
+            if int(m.group(2)):
+                tab.notes.append(f"the accelerometer reported {int(m.group(2))} overflow(s): samples were lost")
+            continue
         if s[-1:] == b"," and s.count(b",") == ncol:  # a trailing comma, not an empty last cell
             s = s[:-1].rstrip()
         keep.append(i)
@@ -765,6 +779,8 @@ def load_csv(path: str | os.PathLike[str], *, resample: str = "auto", max_bytes:
     axis, prefix = _name_info(p)
     if low[0] == "freq" and any(h.startswith("psd") for h in low[1:]):
         return _psd(tab, low, axis, prefix)
+    if header[0] == "Sample" and tab.rate is not None:
+        return _rrf(tab, axis)
     kind = "klipper_raw" if tuple(low) == KLIPPER_RAW else "csv"
     tcol, mul, div, tnote = _time_column(p, header, tab.header_line)
     names = [h for j, h in enumerate(header) if j != tcol]
@@ -795,6 +811,28 @@ def load_csv(path: str | os.PathLike[str], *, resample: str = "auto", max_bytes:
     ds = Dataset(p, kind, tu - t0, columns, fs, rnote is not None, notes, axis=axis,
                  klipper_output="raw_data" if kind == "klipper_raw" and prefix == "raw_data" else None, t0=t0)
     return ds
+
+
+def _rrf(tab: _Table, axis: str | None) -> Dataset:
+    """RepRapFirmware's M956 recording: sample numbers, accelerations in g, the rate on the last line."""
+    p = tab.path
+    rate = float(tab.rate or 0.0)
+    if not rate > 0:
+        raise _err(p, "the closing 'Rate' line gives no sampling rate")
+    if tab.n < MIN_SAMPLES:
+        raise _err(p, f"only {tab.n} data rows; at least {MIN_SAMPLES} samples are needed")
+    k = tab.col(0)
+    if np.any(np.diff(k) != 1):
+        i = int(np.flatnonzero(np.diff(k) != 1)[0]) + 1
+        raise _err(p, f"line {tab.line(i)}: sample {k[i]:.0f} follows {k[i - 1]:.0f}: samples are missing")
+    columns = {}
+    for j, name in enumerate(tab.header[1:], start=1):
+        if name not in ("X", "Y", "Z"):
+            raise _err(p, f"line {tab.header_line}: RepRapFirmware records columns X, Y, Z, got {name!r}")
+        columns[f"accel_{name.lower()}"] = tab.col(j) * _G
+    notes = list(tab.notes) + [f"RepRapFirmware accelerometer file: {rate:g} Hz (its closing line), accelerations "
+                               "converted from g to mm/s^2"]
+    return Dataset(p, "rrf_accelerometer", (k - k[0]) / rate, columns, rate, False, notes, axis=axis)
 
 
 def _psd(tab: _Table, low: list[str], axis: str | None, prefix: str | None) -> Dataset:

@@ -122,9 +122,15 @@ def resonance_data(ds: Dataset, axis: str | None = None) -> ResonanceData:
     ax = axis or name_axis
     if ds.kind == "klipper_psd":
         return _from_psd(ds, ax, notes)
+    if ds.kind == "rrf_accelerometer":
+        raise ValueError(f"{ds.path}: a RepRapFirmware recording of your own moves has no known excitation (no "
+                         "sweep to model), so its spectrum cannot be read as resonances; fit its ring-down instead "
+                         "(a recording that ends in the free decay after a move): posicast identify FILE --output "
+                         "accel_x --method decay")
     if ds.kind != "klipper_raw":
-        raise ValueError(f"{ds.path}: not a Klipper accelerometer log or PSD file "
-                         "(expected columns #time,accel_x,accel_y,accel_z or freq,psd_x,...)")
+        raise ValueError(f"{ds.path}: not a Klipper accelerometer log or PSD file, nor a RepRapFirmware "
+                         "accelerometer file (expected columns #time,accel_x,accel_y,accel_z, freq,psd_x,... or "
+                         "Sample,X,Y,Z)")
     return _from_raw(ds, ax, notes)
 
 
