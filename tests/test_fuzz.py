@@ -461,7 +461,7 @@ def shaper_check(S: Any, kw: dict[str, Any]) -> str | None:
 
 
 def delay_check(D: Any, kw: dict[str, Any]) -> str | None:
-    tau = float(kw["tau"])
+    float(kw["tau"])  # a real delay was drawn
     v = D(1j)  # |exp(-j tau)| = 1
     return None if abs(abs(v) - 1.0) < 1e-12 else f"|delay(tau)(j)| = {abs(v)!r}, not 1"
 

@@ -10,7 +10,7 @@ import pytest
 import posicast
 from posicast import Mode, design
 from posicast.cli import main
-from posicast.identify import calibrate, klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
+from posicast.identify import klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
 from posicast.identify.estimators import _radius_from_bandwidth, resonator_bandwidth
 from posicast.identify.report import SEED_MODE, trial_stats
 from posicast.identify.synthetic import simulate
@@ -275,6 +275,28 @@ def test_noise_only_gives_no_mode(method: str) -> None:
             found.append((seed, r.modes))
         except posicast.NoModeFound:
             pass
+    assert found == []
+
+
+@pytest.mark.parametrize("method", ["oe", "arx", "freq"])
+def test_coloured_noise_and_a_static_gain_give_no_mode(method: str) -> None:
+    """An output that does not depend on the input through a mode: AR(1) noise (rho 0.9), and for ARX a
+    static gain.  The noise's colour used to pass as a mode (oe 14/30, arx 30/30 for filtered noise)."""
+    from scipy import signal
+
+    t = np.arange(1000) / 200.0
+    found = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        u = rng.standard_normal(t.size)
+        ys = [signal.lfilter([1.0], [1.0, -0.9], rng.standard_normal(t.size))]
+        if method == "arx":
+            ys.append(2.0 * u + rng.standard_normal(t.size))
+        for y in ys:
+            try:
+                found.append((seed, posicast.identify(t, u, y, method=method).modes))
+            except posicast.NoModeFound:
+                pass
     assert found == []
 
 

@@ -92,7 +92,9 @@ def _build_parser() -> _Parser:
                    help="the Klipper whose shapers and rules to use (default v0.13)")
     c.add_argument("--axis", choices=("x", "y", "z"), help="tested axis when the file names do not say it")
     c.add_argument("--at", help="one label per file for a frequency schedule: mass=0,100,200 (g) or z=0,50,100 (mm)")
-    c.add_argument("--vtol", type=float, default=0.05, help="worst-case vibration target, in (0, 1) (default 0.05)")
+    c.add_argument("--vtol", type=float,
+                   help="worst-case vibration target, in (0, 1): least smoothing within it (default: the best "
+                        "trade-off of vibration and smoothing)")
     c.add_argument("--margin", type=float, default=0.05, help="frequency drift of the modes, in [0, 0.5) (default 0.05)")
     c.add_argument("--max-smoothing", type=float, help="upper bound on Klipper's smoothing [mm]")
     c.add_argument("--slack", type=float, default=0.01,
@@ -315,7 +317,8 @@ def _identify_cmd(args: argparse.Namespace) -> int:
 def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
     from . import _validate as v
 
-    v.in_open_interval(args.vtol, "--vtol", 0.0, 1.0)
+    if args.vtol is not None:
+        v.in_open_interval(args.vtol, "--vtol", 0.0, 1.0)
     margin = v.real(args.margin, "--margin")
     if not 0.0 <= margin < 0.5:
         raise ValueError(f"--margin must be in [0, 0.5), got {margin:g}")

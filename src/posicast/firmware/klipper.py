@@ -217,7 +217,9 @@ class Klipper(Firmware):
         """The generalised ``mzv(n=.., t=..)`` of Klipper master (April 2026 and later)."""
         if not self.parametric:
             raise ValueError(f"Klipper {self.version} has no parametric mzv; use version='master'")
-        _mzv_undamped(n, t)  # validates
+        n = v.integer_in_range(n, "n", 3, 30)
+        t = v.real(t, "t")
+        _mzv_undamped(n, t)  # validates t against n
         return ShaperType("mzv", _mzv, 1.0, max_damping=0.99, params={"n": n, "t": t},
                           label=f"mzv(n={n},t={t:g})", tool_min_freq=23.0)
 
@@ -225,6 +227,7 @@ class Klipper(Firmware):
         """``ei(v_tol=..)`` of Klipper master (April 2026 and later)."""
         if not self.parametric:
             raise ValueError(f"Klipper {self.version} has no parametric ei; use version='master'")
+        vtol = v.real(vtol, "vtol")
         if not 0.0 < vtol < 0.2:
             raise ValueError(f"v_tol must be in (0, 0.2), got {vtol:g}")
         return ShaperType("ei", _ei_fit, 1.0, max_damping=0.4, params={"v": vtol}, label=f"ei(v_tol={vtol:g})",
@@ -298,11 +301,11 @@ def _above_threshold(bins: np.ndarray, psd: np.ndarray) -> tuple[np.ndarray, np.
     return b[sel], p[sel], max(total, 1e-300)
 
 
-def klipper_scan(fw: Klipper, st: ShaperType, damping: float, freqs: np.ndarray,
+def klipper_scan(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
                  datasets: list[tuple[np.ndarray, np.ndarray]]) -> list[KlipperPick]:
     """Every frequency of ``freqs`` for one type at one design damping, scored as Klipper scores it."""
     A, T1 = st.impulses(1.0, damping)
-    T = T1[None, :] / np.asarray(freqs, dtype=float)[:, None]
+    T = fw.times(T1[None, :] / np.asarray(freqs, dtype=float)[:, None])  # what the firmware runs (Marlin: 1 ms)
     vib = firmware_vibrations(A, T, datasets)
     sm, ma = fw.smoothing(A, T), fw.max_accel(A, T)
     return [KlipperPick(Setting(fw, st, float(F), damping), float(vb), float(s), float(m))
@@ -321,32 +324,39 @@ def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.nda
     answer next to posicast's and to make sure posicast's is not worse.
     """
     all_types = fw.types()
+    unknown = [t for t in types if t not in all_types]
+    if unknown:
+        raise ValueError(f"{fw.name} has no shaper type {', '.join(map(repr, unknown))}; it has {', '.join(all_types)}")
+    master = getattr(fw, "version", None) == "master"
     picks: dict[str, KlipperPick] = {}
     best: KlipperPick | None = None
-    tested: list[KlipperPick] = []
     for name in types:
         st = all_types[name]
         if damping > st.max_damping:
             continue
         freqs = np.arange(st.tool_min_freq or max(st.min_freq, 20.0), min(max_shaper_freq, st.max_freq), step)
         res = klipper_scan(fw, st, damping, freqs, datasets)  # low to high
-        if max_smoothing is not None:
-            res_hi = [r for r in res if r.smoothing <= max_smoothing]
-            res = res_hi or res[-1:]
-        # best vibration, scanning from high to low frequency (ties keep the higher one)
-        best_res = None
+        # best vibration, scanning from high to low frequency (ties keep the higher one); with
+        # max_smoothing the scan stops at the first frequency that smooths more, and the best so far is
+        # returned without the score-based selection (fit_shaper's early return)
+        best_res, cut = None, False
+        scanned = []
         for r in res[::-1]:
+            if max_smoothing is not None and r.smoothing > max_smoothing and best_res is not None:
+                cut = True
+                break
+            scanned.append(r)
             if best_res is None or r.vibrations < best_res.vibrations:
                 best_res = r
         assert best_res is not None
         chosen = best_res
-        master = getattr(fw, "version", None) == "master"
         slack = 0.0005 if master else 0.0  # Kalico / v0.13: within 1.1 x, no absolute slack
-        for r in res[::-1]:
-            if r.vibrations < best_res.vibrations * 1.1 + slack and r.score < chosen.score:
-                chosen = r
+        if not cut:
+            for r in scanned:
+                if r.vibrations < best_res.vibrations * 1.1 + slack and r.score < chosen.score:
+                    chosen = r
+        res = scanned[::-1]
         picks[name] = chosen
-        tested += res
         if best is None or chosen.score * 1.2 < best.score or (
                 chosen.score * 1.05 < best.score and chosen.smoothing * 1.1 < best.smoothing):
             best = chosen
@@ -356,9 +366,9 @@ def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.nda
                     best = r
                     picks[name] = r
     assert best is not None
-    if getattr(fw, "version", None) == "master" and best.setting.shaper_type.name == "zv":
-        for name in types[1:]:
-            if name in picks and picks[name].vibrations * 1.1 < best.vibrations:
+    if master and best.setting.shaper_type.name == "zv":
+        for name in types:
+            if name != "zv" and name in picks and picks[name].vibrations * 1.1 < best.vibrations:
                 best = picks[name]
                 break
     return best, picks

@@ -9,7 +9,8 @@ recommendation is scored on the impulses the machine will run.
   ``M593 P"<type>" F<Hz> S<zeta>``; types ``zvd``, ``zvdd``, ``zvddd`` (binomial),
   ``mzv`` (note: RRF runs Klipper's MZV amplitudes in **reverse order**, which cancels
   the mode only at zero damping: 16 % residual at its own design point for
-  zeta = 0.1), ``ei2``, ``ei3`` (Singhose's cubic fits, as Klipper master), and
+  zeta = 0.1), ``ei2``, ``ei3`` (Singhose's cubic fits as Klipper master has them, but
+  times in damped periods and the last amplitude one minus the others), and
   ``custom`` with at most 5 impulses (4 ``H`` values).  F in [5.72, 1000] Hz (Duet 3),
   S in [0, 0.99].  Custom syntax: 3.6 writes the amplitudes of all impulses but the
   last and the delays from the first (s); 3.4/3.5 cumulative amplitudes and segment
@@ -36,7 +37,7 @@ import numpy as np
 
 from .. import _validate as v
 from .base import Firmware, Setting, ShaperType
-from .klipper import _ei2_fit, _ei2_legacy, _ei3_fit, _ei3_legacy, _ei_legacy, _mzv, _zv, _zvd
+from .klipper import _EI2_A, _EI2_T, _EI3_A, _EI3_T, _ei2_legacy, _ei3_legacy, _ei_legacy, _mzv, _zv, _zvd
 
 __all__ = ["RepRapFirmware", "MarlinFT", "Prusa"]
 
@@ -65,6 +66,18 @@ def _mzv_marlin(F: float, z: float) -> tuple[np.ndarray, np.ndarray]:
     td = 1.0 / (F * math.sqrt(1.0 - z * z))
     B = math.sqrt(2.0) * K
     return np.array([1.0, B, K * K]), np.array([0.0, 0.375 * td, 0.75 * td])
+
+
+def _ei_rrf(tt: list[list[float]], aa: list[list[float]]):  # noqa: ANN202
+    """RepRapFirmware's 2-/3-hump EI (AxisShaper.cpp): Singhose's cubic fits in zeta, but times in units
+    of the damped period ``1/(F sqrt(1 - zeta^2))`` (Klipper: ``1/F``) and the last amplitude ``1 -`` the
+    others (Klipper: its own fit)."""
+    def design(F: float, z: float) -> tuple[np.ndarray, np.ndarray]:
+        zp = z ** np.arange(4)
+        A = np.asarray(aa) @ zp
+        A[-1] = 1.0 - float(np.sum(A[:-1]))
+        return A, (np.asarray(tt) @ zp) / (F * math.sqrt(1.0 - z * z))
+    return design
 
 
 def _zv_pair(F: float, z: float, ratio: float) -> tuple[np.ndarray, np.ndarray]:
@@ -105,8 +118,8 @@ class RepRapFirmware(Firmware):
             "zvdd": ShaperType("zvdd", _binomial(2), 5.72, 1000.0, 0.99),
             "zvddd": ShaperType("zvddd", _binomial(3), 5.72, 1000.0, 0.99),
             "mzv": ShaperType("mzv", _mzv_reversed, 5.72, 1000.0, 0.99),
-            "ei2": ShaperType("ei2", _ei2_fit, 5.72, 1000.0, 0.3),
-            "ei3": ShaperType("ei3", _ei3_fit, 5.72, 1000.0, 0.2),
+            "ei2": ShaperType("ei2", _ei_rrf(_EI2_T, _EI2_A), 5.72, 1000.0, 0.3),
+            "ei3": ShaperType("ei3", _ei_rrf(_EI3_T, _EI3_A), 5.72, 1000.0, 0.2),
         }
 
     def types(self) -> dict[str, ShaperType]:
@@ -137,15 +150,19 @@ class RepRapFirmware(Firmware):
 
     def custom(self, A: np.ndarray, T: np.ndarray) -> list[str]:
         """``M593 P"custom"`` for impulses ``(A, T)`` (at most 5), in this version's syntax."""
-        A = np.asarray(A, dtype=float)
-        T = np.asarray(T, dtype=float)
+        A = v.strict_real_array(A, "A")
+        T = v.strict_real_array(T, "T")
+        if A.ndim != 1 or A.shape != T.shape:
+            raise ValueError(f"A and T must be 1-D of the same length, got shapes {A.shape} and {T.shape}")
+        if np.any(np.diff(T) <= 0):
+            raise ValueError("T must be increasing impulse times (s)")
         if A.size > self.max_custom_impulses:
             raise ValueError(f"RepRapFirmware accepts at most {self.max_custom_impulses} impulses in a custom "
                              f"shaper (4 H values); this one has {A.size}")
         if A.size < 2:
             raise ValueError("a custom shaper needs at least 2 impulses")
-        if np.any(A < 0):
-            raise ValueError("RepRapFirmware's custom shaper needs non-negative amplitudes")
+        if np.any(A < 0) or not A.sum() > 0:
+            raise ValueError("RepRapFirmware's custom shaper needs non-negative amplitudes with a positive sum")
         A = A / A.sum()
         T = T - T[0]
         if self.version == "3.6":

@@ -273,7 +273,7 @@ def _labels(at: Sequence[dict[str, float]] | None, n: int) -> list[dict[str, flo
 
 
 def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Sequence[str] = "klipper",
-              axis: str | None = None, at: Sequence[dict[str, float]] | None = None, vtol: float = 0.05,
+              axis: str | None = None, at: Sequence[dict[str, float]] | None = None, vtol: float | None = None,
               margin: float = 0.05, max_smoothing: float | None = None, slack: float = 0.01,
               klipper_version: str = "v0.13",
               input: str | None = None, output: str | None = None, method: str | None = None,
@@ -292,8 +292,9 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         The tested axis when the file names do not say it.
     at : list of dict, optional
         One label per file: ``{"mass": grams}`` or ``{"z": mm}``, for a frequency schedule.
-    vtol : float
-        Worst-case residual vibration target, in (0, 1).
+    vtol : float, optional
+        Worst-case residual vibration target, in (0, 1); None (default): the best trade-off
+        of vibration and smoothing (see :mod:`.recommend`).
     margin : float
         Relative frequency drift added to every mode's interval, in [0, 0.5).
     max_smoothing : float, optional
@@ -341,7 +342,8 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         raise TypeError("progress must be a callable taking a str, or None")
     fws = _firmwares(firmware, klipper_version)
     labels = _labels(at, len(paths))
-    vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
+    if vtol is not None:
+        vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
     if max_smoothing is not None:
         max_smoothing = v.positive(max_smoothing, "max_smoothing")
     say = progress or (lambda s: None)
@@ -394,7 +396,7 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
             recs.append(recommend_setting(fw, boxes, spectra, vtol=vtol, max_smoothing=max_smoothing, axis=ax,
                                           margin=margin, slack=slack))
     all_boxes = [b for fr in good for b in boxes_of[id(fr)]]
-    S, worst, label = optimum(all_boxes, vtol=vtol)
+    S, worst, label = optimum(all_boxes, vtol=0.05 if vtol is None else vtol)
     schedule = _schedule(good, fws) if any(fr.label for fr in good) else None
     for fr in files:
         if fr.no_mode:
@@ -438,7 +440,7 @@ def _schedule(files: list[FileResult], fws: list[Firmware]) -> Schedule | None:
             lines += [f"M593 Y F{f0:.1f}"] + fw.weight_adjustment(slope * span, span)
         if isinstance(fw, MarlinFT):
             if var == "z":
-                lines += [f"; Marlin FT_MOTION dynamic frequency by Z: f = A + F z",
+                lines += ["; Marlin FT_MOTION dynamic frequency by Z: f = A + F z",
                           f"M493 {axis.upper()} D1 A{f0:.1f} F{slope:.4f}"]
             elif var == "mass":
                 per_mm = slope * PLA_G_PER_MM

@@ -198,12 +198,14 @@ class _OEModel:
         self.initial_state = initial_state or u is None
         self.k = np.arange(y.size, dtype=float)
         self.n_lin_last = 0
+        self._free: dict[int, list[int]] = {}
 
     def basis(self, theta: np.ndarray) -> np.ndarray:
         return self.columns(theta)[0]
 
     def columns(self, theta: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
-        """The regression columns at ``theta`` and, per mode, the indices of its own columns."""
+        """The regression columns at ``theta`` and, per mode, the indices of the columns that make it a mode
+        of this data: its input-driven columns when there is an input, else its free response."""
         cols: list[np.ndarray] = []
         groups: list[list[int]] = []
         for i in range(self.n):
@@ -217,11 +219,15 @@ class _OEModel:
                 x1 = signal.lfilter([0.0, 1.0], a, self.u)
                 x2 = np.concatenate(([0.0], x1[:-1]))
                 cols += [x1, x2]
+            forced = len(cols)
             if self.initial_state:
                 r = np.exp(p.real * self.h * self.k)
                 ph = p.imag * self.h * self.k
                 cols += [r * np.cos(ph), r * np.sin(ph)]
-            groups.append(list(range(start, len(cols))))
+            # with an input, a mode of the system is one the input drives: a free response alone also fits
+            # a slow drift or coloured noise that has nothing to do with the input (see mode_tests)
+            groups.append(list(range(start, forced)) if self.u is not None else list(range(start, len(cols))))
+            self._free[i] = list(range(forced, len(cols)))
         if self.feedthrough:
             cols.append(self.u)
         if self.offset:
@@ -236,8 +242,17 @@ class _OEModel:
             Phi, y = Phi * self.w[:, None], y * self.w
         dof = self.n_used - n_lin - theta.size
         out = []
-        for g in groups:
+        for i, g in enumerate(groups):
             rest = [j for j in range(Phi.shape[1]) if j not in g]
+            if self.u is not None and self._free.get(i) and rest:
+                # a step from the first sample: the forced response is an offset minus a free response, so
+                # the input's part cannot be told from them; then the mode's columns are tested together
+                Q, _ = np.linalg.qr(Phi[:, rest])
+                X = Phi[:, g]
+                left = np.linalg.norm(X - Q @ (Q.T @ X)) / max(float(np.linalg.norm(X)), 1e-300)
+                if left < 1e-2:
+                    g = g + self._free[i]
+                    rest = [j for j in range(Phi.shape[1]) if j not in g]
             out.append(wald_test(y, Phi[:, g], Phi[:, rest], e, dof, cells, hac))
         return out
 
@@ -529,9 +544,16 @@ def _arx(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, nk: int = 0) ->
     theta, *_ = np.linalg.lstsq(A, yp, rcond=None)  # eq. 24-25 (pseudo-inverse)
     e = yp - A @ theta
     dof = max(ks.size - 4, 1)
-    # is the model any better than nothing?  F-test of all four coefficients (no frequency search);
-    # on white noise they are all insignificant (a step's input terms alone can be: they are constant)
-    test = wald_test(yp, A, None, e, dof, 1.0, hac=False)
+    # does the input drive the output through this model?  F-test of its simulated output on the data
+    # (offset partialled out, residual whitened if coloured): the autoregressive part alone also fits
+    # coloured noise, and a static gain alone also passes a test of all four coefficients
+    y_sim = signal.lfilter(theta[:2] if nk == 0 else np.r_[np.zeros(nk), theta[:2]], np.r_[1.0, theta[2:]], u)
+    if not np.all(np.isfinite(y_sim)) or np.max(np.abs(y_sim)) > 1e12 * max(float(np.max(np.abs(y))), 1e-300):
+        raise NoModeFound("no mode found (arx): the fitted model is unstable")
+    ones = np.ones((y.size, 1))
+    r_sim = y - y_sim
+    test = wald_test(y, y_sim[:, None], ones, r_sim - r_sim.mean(), y.size - 2, 1.0,
+                     coloured=whiteness(r_sim) < 0.01)
     C = float(e @ e) / dof * np.linalg.pinv(A.T @ A)
 
     def to_mode(a1: float, a2: float) -> tuple[float, float]:
@@ -545,6 +567,8 @@ def _arx(t: np.ndarray, u: np.ndarray, y: np.ndarray, fs: float, nk: int = 0) ->
         raise NoModeFound("no mode found (arx): the model is no better than noise: it " + test.describe(),
                           None, test)
     w, z = to_mode(theta[2], theta[3])
+    if z >= 0.45:  # poles near the origin: no resonant peak (a static gain on noise fits this way)
+        raise NoModeFound(f"no mode found (arx): the fitted poles (zeta {z:.2f}) have no resonant peak")
     Jm = np.empty((2, 2))
     for j in range(2):
         d = 1e-7 * max(abs(theta[2 + j]), 1e-3)
@@ -725,7 +749,7 @@ def _psd(y: np.ndarray, fs: float, n_modes: int | str, *, band: tuple[float, flo
     """Output-only: Welch PSD (1 Hz resolution) fitted by :func:`posicast.identify.spectral.fit_spectrum`
     with an excitation ``E(f) = f^excitation_slope``."""
     from .spectral import (KAISER6_CORRELATION, Spectrum, fit_spectrum,  # noqa: PLC0415 (spectral imports this)
-                           welch_dispersion, welch_psd)
+                           welch_dispersion, welch_kernel, welch_psd)
 
     resolution = max(1.0, 8.0 * fs / y.size)  # at least 8 segments
     f, P, K = welch_psd(y - np.mean(y), fs, resolution)
@@ -733,7 +757,7 @@ def _psd(y: np.ndarray, fs: float, n_modes: int | str, *, band: tuple[float, flo
     E = np.where(f > 0, np.maximum(f, 1e-300) ** excitation_slope, 0.0)
     spec = Spectrum(f, P, E, (lo, hi), low_frequency=False, resolution=float(f[1] - f[0]),
                     source="Welch PSD of y", correlation=KAISER6_CORRELATION,
-                    dispersion_floor=welch_dispersion(np.kaiser(2 * (f.size - 1), 6.0), K))
+                    dispersion_floor=welch_dispersion(np.kaiser(2 * (f.size - 1), 6.0), K), kernel=welch_kernel())
     r = fit_spectrum(spec, n_modes)
     return Identification(r.modes, [Interval(*iv) for iv in r.intervals], "psd", float("nan"), float("nan"),
                           "whittle", r.fit.model, None, fs, freqs=r.fit.freqs, spectrum=r.fit.psd,

@@ -203,7 +203,11 @@ def excitation_psd(test: ResonanceTest, f: np.ndarray) -> np.ndarray:
     ``E_vib(f) = (8/pi^2) accel_per_hz^2 f^2 / B`` inside the excited band plus
     ``E_sweep(f) = 4 S^2 / (pi^2 P f^2)`` (module docstring).
     """
-    f = np.asarray(f, dtype=float)
+    if not isinstance(test, ResonanceTest):
+        raise TypeError(f"test must be a ResonanceTest, got {type(test).__name__}")
+    f = v.strict_real_array(f, "f")
+    if np.any(f < 0):
+        raise ValueError("f must be frequencies >= 0 Hz")
     lo, hi = test.excited_band
     aph = test.accel_per_hz
     out = np.where((f >= lo) & (f <= hi), 8.0 / math.pi ** 2 * aph ** 2 * f ** 2 / (hi - lo), 0.0)
@@ -220,7 +224,9 @@ def klipper_normalisation(f: np.ndarray) -> np.ndarray:
     ``1/(f + 0.1)``, times ``exp(1 - (10/(f + 0.1))^2)`` below 10 Hz
     (klippy/extras/shaper_calibrate.py, ``normalize_to_frequencies``).
     """
-    f = np.asarray(f, dtype=float)
+    f = v.strict_real_array(f, "f")
+    if np.any(f < 0):
+        raise ValueError("f must be frequencies >= 0 Hz")
     g = 1.0 / (f + 0.1)
     return np.where(f < 10.0, g * np.exp(1.0 - (10.0 / (f + 0.1)) ** 2), g)
 
@@ -258,7 +264,11 @@ def estimate_sweep(y: np.ndarray, fs: float, *, window: float = 1.0) -> SweepEst
     Returns None when no sweep is found (fewer than 60 % of the active frames on one
     line, or a rate that is not positive).
     """
-    y = np.asarray(y, dtype=float)
+    y = v.strict_real_array(y, "y")
+    if y.ndim != 1:
+        raise ValueError(f"y must be one-dimensional, got shape {y.shape}")
+    fs = v.positive(fs, "fs")
+    window = v.real_in_range(window, "window", 1e-3, 100.0)
     q = max(1, int(fs // 1000))  # the sweep is tracked below 500 Hz: a q-sample mean, then every q-th sample
     if q > 1:
         m = y.size // q

@@ -6,7 +6,6 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis import residual_vibration
 from .calibration import Calibration
 from .estimators import Identification
 

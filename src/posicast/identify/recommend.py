@@ -5,25 +5,29 @@ accepts (0.2 Hz steps) and at two design damping ratios (the firmware's default 
 and the identified dominant mode's), on the impulses the firmware itself computes
 (:mod:`posicast.firmware`):
 
-* ``vibration``: posicast's worst case, the largest residual vibration over each
-  identified mode's 95 % box (frequency interval widened by ``margin`` for the drift
-  of a machine's modes with position and load, damping interval), weighted by the
-  mode's share of the measured vibration; this replaces the single assumed damping
-  of the firmware tools;
+* ``vibration``: posicast's worst case.  With measured spectra (every printer file):
+  the residual vibration (seed 004 eq. 1-3) averaged over the spectrum's significant
+  bins weighted by their power, worst over the identified damping range and a
+  ``+-margin`` drift of the spectrum (a machine's modes move with position and load);
+  this replaces the single assumed damping of the firmware tools.  Without spectra
+  (input/output data): the largest residual vibration over each mode's 95 % box
+  (frequency interval widened by ``margin``), weighted by the mode's share;
 * ``firmware_vibration``: Klipper's own remaining-vibrations metric on the measured
   spectra (worst of damping 0.075, 0.1, 0.15 and of the files), when spectra exist;
 * smoothing and ``max_accel`` as Klipper's calibration computes them (the only
   published measure; used for every firmware, for comparison).
 
-**What is chosen.**  The least smoothing among the settings whose worst case stays
-within ``vtol`` (and under ``max_smoothing`` when given); if none does, the most
-robust one.  With spectra, the firmware tool's own pick is computed too (Klipper's
-selection rules, :func:`posicast.firmware.klipper.klipper_recommendation`), and a
-setting is only eligible if Klipper's metric rates it at most ``slack`` (default one
-point) worse than that pick and that pick does not dominate it (as good or better in
-both vibration and smoothing): posicast never prints a line the firmware's own tool
-beats on its own terms, and trades at most ``slack`` of the tool's vibration measure
-for less smoothing.
+**What is chosen.**  By default the best trade-off: Klipper's own score
+``smoothing (w^1.5 + 0.2 w + 0.01)`` (shaper_calibrate.py), but on posicast's worst
+case ``w`` rather than on vibrations at assumed dampings.  With a target ``vtol``, the
+least smoothing among the settings whose worst case stays within it (the trade-off,
+with a warning line, when none does); ``max_smoothing`` bounds the smoothing.  With
+spectra, the firmware tool's own pick is computed too (Klipper's selection rules,
+:func:`posicast.firmware.klipper.klipper_recommendation`), and a setting is only
+eligible if Klipper's metric rates it at most ``slack`` (default one point) worse
+than that pick and that pick does not dominate it (as good or better in both
+vibration and smoothing): posicast never prints a line the firmware's own tool beats
+on its own terms.
 
 **posicast's optimum** (no firmware limits): posicast's exact designs (``zv``,
 ``mzv``, ``zvd``, ``ei``, ``ei2``, ``ei3``) at each mode and their convolutions over
@@ -44,7 +48,7 @@ from ..firmware.base import smoothing_offsets
 from ..firmware.klipper import DEFAULT_DAMPING, _above_threshold, firmware_vibrations, klipper_recommendation
 from ..modes import Mode
 from ..shapers import Shaper, design
-from .estimators import Identification, Interval
+from .estimators import Interval
 
 __all__ = ["ModeBox", "mode_boxes", "Candidate", "Recommendation", "recommend_setting", "optimum",
            "klipper_smoothing"]
@@ -118,9 +122,9 @@ class Candidate:
     setting : Setting
         Firmware, shaper type, frequency, design damping.
     vibration : float
-        posicast's worst case over the mode boxes (weighted), 0..1.
+        posicast's worst case (module docstring), 0..1.
     per_mode : tuple of float
-        The weighted worst case per mode.
+        Without spectra, the weighted worst case per mode; with spectra, the one value.
     firmware_vibration : float or None
         Klipper's remaining vibrations on the measured spectra, 0..1 (None without spectra).
     smoothing : float
@@ -263,11 +267,14 @@ def _score_type(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
         vib = np.zeros(freqs.size)
         drift = (1.0 - margin, 1.0, 1.0 + margin) if margin > 0 else (1.0,)
         for bins, psd in spectra:
-            b, p, total = _above_threshold(bins, psd)  # only these bins can count (exact)
-            thr = float(p.max()) * 0.05
+            # the residual vibration (seed 004 eq. 1-3) averaged over the spectrum's significant bins (above
+            # 1/20 of its maximum), weighted by their power: the share of the measured vibration left.  Unlike
+            # Klipper's measure it does not subtract the 1/20 threshold (which reads a 7 % residual at the
+            # peak as 2 %), so vtol means what it says
+            b, p, _ = _above_threshold(bins, psd)
             V = vibration_grid(A, T, np.concatenate([b * d for d in drift]), np.asarray(dampings))
             V = V.reshape(freqs.size, len(drift), b.size, len(dampings))
-            R = np.sum(np.maximum(V * p[None, None, :, None] - thr, 0.0), axis=2) / total  # [F, drift, zeta]
+            R = np.einsum("fdbz,b->fdz", V, p) / float(p.sum())  # [F, drift, zeta]
             vib = np.maximum(vib, R.max(axis=(1, 2)))
         fv = firmware_vibrations(A, T, spectra)  # Klipper's own measure: its test dampings, no drift
         per = vib[:, None]
@@ -307,7 +314,7 @@ def _candidate(fw: Firmware, sc: _Scored, i: int) -> Candidate:
                      float(sc.ma[i]))
 
 
-def _choose(vib: np.ndarray, fv: np.ndarray, sm: np.ndarray, vtol: float, max_smoothing: float | None,
+def _choose(vib: np.ndarray, fv: np.ndarray, sm: np.ndarray, vtol: float | None, max_smoothing: float | None,
             ref: Candidate | None, slack: float = 0.01) -> tuple[int, str]:
     """Index of the chosen setting and why (module docstring)."""
     ok = np.ones(vib.size, dtype=bool)
@@ -317,17 +324,23 @@ def _choose(vib: np.ndarray, fv: np.ndarray, sm: np.ndarray, vtol: float, max_sm
         ok &= ~((rv <= fv) & (rs <= sm) & ((rv < fv) | (rs < sm)))  # not dominated by the tool's own pick
     if max_smoothing is not None:
         ok &= sm <= max_smoothing
-    feasible = ok & (vib <= vtol)
-    if feasible.any():
-        idx = np.flatnonzero(feasible)
-        return int(idx[np.lexsort((vib[idx], sm[idx]))[0]]), "least smoothing within the vibration target"
+    if vtol is not None:
+        feasible = ok & (vib <= vtol)
+        if feasible.any():
+            idx = np.flatnonzero(feasible)
+            return int(idx[np.lexsort((vib[idx], sm[idx]))[0]]), "least smoothing within the vibration target"
+    # Klipper's trade-off (shaper_calibrate.py's score), on posicast's worst case instead of one damping
+    score = sm * (vib ** 1.5 + 0.2 * vib + 0.01)
+    why = ("no setting reaches the vibration target; the best trade-off" if vtol is not None else
+           "the best trade-off of vibration and smoothing")
     if ok.any():
         idx = np.flatnonzero(ok)
-        return int(idx[np.argmin(vib[idx])]), "no setting reaches the vibration target; the most robust one"
-    return int(np.argmin(vib)), "no setting meets the constraints; the most robust one"
+        return int(idx[np.argmin(score[idx])]), why
+    return int(np.argmin(score)), why + " (no setting meets the constraints)"
 
 
-def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | None = None, *, vtol: float = 0.05,
+def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | None = None, *,
+                      vtol: float | None = None,
                       max_smoothing: float | None = None, axis: str | None = None, margin: float = 0.05,
                       slack: float = 0.01, extra_types: Sequence[ShaperType] = ()) -> Recommendation:
     """Search every setting ``fw`` can run and choose one (module docstring).
@@ -339,8 +352,10 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
         From :func:`mode_boxes` (the modes of every file that must be covered).
     spectra : list of (freqs, psd), optional
         Klipper-normalised x + y + z spectra (``ResonanceData.firmware_freqs/psd``).
-    vtol : float
-        Worst-case vibration target, in (0, 1).
+    vtol : float, optional
+        Worst-case vibration target, in (0, 1): the least smoothing within it wins.  None
+        (default): the best trade-off, Klipper's score ``smoothing (w^1.5 + 0.2 w + 0.01)``
+        on posicast's worst case ``w``.
     margin : float
         Frequency drift of the machine's modes (with spectra: the spectrum is stretched by it).
     max_smoothing : float, optional
@@ -360,7 +375,8 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
         raise TypeError("boxes must be ModeBox objects (from posicast.identify.mode_boxes)")
     if axis is not None:
         axis = v.choice(axis, "axis", ("x", "y", "z"))
-    vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
+    if vtol is not None:
+        vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
     if max_smoothing is not None:
         max_smoothing = v.positive(max_smoothing, "max_smoothing")
     slack = v.real(slack, "slack")
@@ -415,10 +431,11 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
         kk, _ = _choose(np.concatenate([s.vib for s in mine]), np.concatenate([s.fv for s in mine]),
                         np.concatenate([s.sm for s in mine]), vtol, max_smoothing, ref, slack)
         per_type[name] = _candidate(fw, *loc[kk])
-    measure = (f"remaining vibration on the measured spectrum, worst over damping {dampings[0]:.3f}-{dampings[2]:.3f} "
-               f"(the identified range) and a +-{100 * margin:.0f} % frequency drift" if spectra else
+    measure = (f"residual vibration weighted by the measured spectrum, worst over damping {dampings[0]:.3f}-"
+               f"{dampings[2]:.3f} (the identified range) and a +-{100 * margin:.0f} % frequency drift" if spectra else
                "residual vibration over the modes' 95 % boxes")
-    reasoning = [f"{fw.name}: {why}: {best.label}; worst case {100 * best.vibration:.1f} % (target {100 * vtol:.0f} %), "
+    target = "" if vtol is None else f" (target {100 * vtol:.0f} %)"
+    reasoning = [f"{fw.name}: {why}: {best.label}; worst case {100 * best.vibration:.1f} %{target}, "
                  f"smoothing {best.smoothing:.3f} mm, max_accel {best.max_accel:.0f} mm/s^2",
                  f"worst case = {measure}"]
     if ref is not None and ref.firmware_vibration is not None and best.firmware_vibration is not None:
@@ -427,7 +444,12 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
                          f"{100 * ref.vibration:.1f} %); posicast's pick has {100 * best.firmware_vibration:.1f} % "
                          "by the same measure")
     reasoning += [f"skipped {s}" for s in skipped]
-    return Recommendation(fw, axis, best, per_type, ref, fw.config(best.setting, axis or "x"), reasoning)
+    config = fw.config(best.setting, axis or "x")
+    if vtol is not None and best.vibration > vtol:
+        mark = "#" if isinstance(fw, Klipper) else ";"
+        config = [f"{mark} warning: no {fw.name} setting keeps the worst case within {100 * vtol:.0f} %; this one "
+                  f"leaves {100 * best.vibration:.1f} %"] + config
+    return Recommendation(fw, axis, best, per_type, ref, config, reasoning)
 
 
 def _spectrum(sp: Any, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -468,6 +490,9 @@ def optimum(boxes: list[ModeBox], *, vtol: float = 0.05) -> tuple[Shaper, float,
     Returns ``(shaper, worst_vibration, description)``; the most robust when none is within ``vtol``.
     """
     vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
+    boxes = v.sequence(boxes, "boxes", min_len=1)
+    if not all(isinstance(b, ModeBox) for b in boxes):
+        raise TypeError("boxes must be ModeBox objects (from posicast.identify.mode_boxes)")
     dom = max(boxes, key=lambda b: b.weight)
     options: list[tuple[str, Shaper]] = []
     for kind, params in OPTIMUM_KINDS:

@@ -30,7 +30,7 @@ import numpy as np
 from .data import Dataset
 from .excitation import SweepEstimate, estimate_sweep, klipper_normalisation
 from .significance import NoModeFound
-from .spectral import KAISER6_CORRELATION, Spectrum, smoothed_periodogram, welch_psd
+from .spectral import KAISER6_CORRELATION, Spectrum, block_kernel, smoothed_periodogram, welch_kernel, welch_psd
 
 __all__ = ["ResonanceData", "resonance_data", "FIT_RESOLUTION"]
 
@@ -147,7 +147,8 @@ def _from_psd(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
     lo = max(_LOWEST, float(f[f > 0][0]) if np.any(f > 0) else _LOWEST)
     E = np.where((f >= lo) & (f <= end), np.maximum(f, 1e-9) ** 2, 0.0)
     spec = Spectrum(f, P, E, (lo, end), True, knorm if normalised else None,
-                    float(np.median(np.diff(f))), f"Klipper {stage} file", correlation=KAISER6_CORRELATION)
+                    float(np.median(np.diff(f))), f"Klipper {stage} file", correlation=KAISER6_CORRELATION,
+                    kernel=welch_kernel())
     keep = f <= 200.0
     return ResonanceData(ds.path, ax, stage, spec, f[keep], fw_psd[keep], None, tuple(notes))
 
@@ -159,8 +160,18 @@ def _from_raw(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
     lead = int(np.argmax(np.var(A[:: max(1, A.shape[0] // 50000)], axis=0)))
     sweep = estimate_sweep(A[:, lead] - A[:, lead].mean(), fs)
     if sweep is None:
-        raise NoModeFound(f"no resonance found in {ds.path}: the log holds no frequency sweep, only noise "
-                          "(was TEST_RESONANCES or SHAPER_CALIBRATE running while it was recorded?)")
+        # noise, or motion whose frequency does not follow a sweep?  Compare the test band with the band
+        # above it, where a resonance test puts (almost) nothing
+        fk, Pk, _ = welch_psd(A, fs, 1.0 / KLIPPER_WINDOW)
+        test_band = float(np.median(Pk[(fk >= 5.0) & (fk <= 135.0)]))
+        above = (fk > 300.0) & (fk < 0.45 * fs)
+        quiet = float(np.median(Pk[above])) if np.any(above) else 0.0
+        if quiet > 0 and test_band < 10.0 * quiet:
+            raise NoModeFound(f"no resonance found in {ds.path}: the log holds no frequency sweep, only noise "
+                              "(was TEST_RESONANCES or SHAPER_CALIBRATE running while it was recorded?)")
+        raise ValueError(f"{ds.path}: the log holds motion, but no frequency sweep could be tracked in it (a "
+                         "resonance test's frequency rises steadily); a strong mode below 15 Hz or a test "
+                         "interrupted part-way can hide it")
     notes.append(f"sweep {sweep.start:.1f} -> {sweep.end:.1f} Hz at {sweep.rate:.3g} Hz/s read from the data")
     seg = slice(max(0, int((sweep.t_start - 0.5) * fs)), min(A.shape[0], int((sweep.t_end + 0.5) * fs)))
     f, P, k = smoothed_periodogram(A[seg], fs, FIT_RESOLUTION)
@@ -170,7 +181,7 @@ def _from_raw(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
     margin = 2.0 * FIT_RESOLUTION
     # averages of k raw bins of a tapered record: nearly independent blocks, each 1/k in variance for noise
     spec = Spectrum(f, P, E, (lo + margin, hi - margin), True, None, float(f[1] - f[0]), "Klipper raw log",
-                    correlation=1.0, dispersion_floor=1.0 / k)
+                    correlation=1.0, dispersion_floor=1.0 / k, kernel=block_kernel())
     # what Klipper would score on: its own Welch estimate (0.5 s) of the whole log, normalised
     fk, Pk, _ = welch_psd(A, fs, 1.0 / KLIPPER_WINDOW)
     keep = fk <= 200.0

@@ -2,25 +2,27 @@
 
 The measured acceleration PSD of a resonance test is modelled as
 
-    M(f) = E(f) sum_c |H_c(j 2 pi f)|^2 + g / f^2 + N,
-    H_c(s) = c_c0 + sum_k (a_ck w_k^2 + b_ck w_k s) / (s^2 + 2 zeta_k w_k s + w_k^2)
+    M(f) = E(f) R(f^2) / prod_k |D_k(j 2 pi f)|^2 + g / f^2 + N,
+    D_k(s) = s^2 + 2 zeta_k w_k s + w_k^2
 
 ``E`` is the test's excitation shape (:mod:`.excitation`: ``f^2`` for Klipper's
-sweep, times Klipper's normalisation for its ``calibration_data`` files), ``H_c``
-the transmissibility from the commanded to the measured acceleration in channel
-``c`` (modes shared, residues free; a sum of channels such as Klipper's ``psd_xyz``
-is covered), ``g / f^2`` the slow sweep's lines below 10 Hz, ``N`` the sensor
-floor.  Writing ``sum_c |H_c|^2 = v^T Q v`` with the real basis
-``v = [1, w_k^2/D_k, w_k s/D_k, ...]`` makes the model **linear** in ``Q`` (a
-symmetric matrix), ``g`` and ``N``: only the poles ``(ln w_k, zeta_k)`` are searched
-(variable projection).
+sweep, times Klipper's normalisation for its ``calibration_data`` files), seen
+through the machine (``sum_c |H_c|^2 = R / prod |D_k|^2`` for the transmissibility
+from the commanded to the measured acceleration, over any number of channels: see
+:meth:`_Model.columns`); ``g / f^2`` the slow sweep's lines (below about 15 Hz, where
+``|H|`` is nearly constant; modes there are flagged as unresolved) and ``N`` the
+sensor floor.  The model is **linear** in the polynomial ``R`` (Chebyshev basis,
+degree ``2 n``), ``g`` and ``N``: only the poles ``(ln w_k, zeta_k)`` are searched
+(variable projection).  It is averaged over each bin the way the estimator
+averages the true PSD (the Welch window's main lobe, or a block of the periodogram),
+so peaks only a few bins wide are compared like with like.
 
 The periodogram average at each bin is the true PSD times a scaled chi-square
 variable, so the fit is the Whittle (gamma) maximum likelihood, computed by
 iteratively reweighted least squares (weights ``1 / M``).  Its dispersion is
-estimated from the residual, the correlation of neighbouring bins (window leakage
-and overlap) from the residual's autocorrelation, and both scale the
-Gauss-Newton covariance of the poles and the likelihood-ratio tests.
+estimated from the residual (and for tests never taken below the estimator's own
+``1/K``), the correlation of neighbouring bins comes from the estimator's window, and
+both scale the Gauss-Newton covariance of the poles and the deviance tests.
 
 Modes are added greedily from the excitation-normalised spectrum's peaks and each
 is kept only when a likelihood-ratio test against the model without it passes
@@ -32,17 +34,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 from scipy import fft as sp_fft
-from scipy import optimize, signal, stats
+from scipy import signal, stats
 
+from .. import _validate as v
 from ..modes import Mode
-from .significance import ALPHA, ModeTest, NoModeFound, search_cells
+from .significance import ModeTest, NoModeFound, search_cells
 
 __all__ = ["Spectrum", "SpectralFit", "SpectralModes", "fit_spectrum", "welch_psd", "smoothed_periodogram",
-           "window_correlation", "welch_dispersion", "BROAD_ZETA", "KAISER6_CORRELATION"]
+           "window_correlation", "welch_dispersion", "welch_kernel", "block_kernel", "BROAD_ZETA",
+           "KAISER6_CORRELATION"]
 
 _ZETA_BOUNDS = (2e-3, 0.6)
 _MAX_MODES = 6
@@ -50,6 +54,8 @@ _MAX_MODES = 6
 BROAD_ZETA = 0.45
 #: A mode whose peak is below this share of the spectrum's maximum is not reported (Klipper's 1/20).
 MINOR_SHARE = 0.05
+#: Below this frequency (Hz) a sweeping test's slow-sweep lines dominate the spectrum: modes there are flagged.
+LOW_SWEEP_LIMIT = 15.0
 
 
 @dataclass(frozen=True)
@@ -82,6 +88,12 @@ class Spectrum:
     dispersion_floor : float, optional
         Known variance of ``psd / true psd`` for noise (``1/K`` for ``K`` averaged
         periodograms); the significance tests never use a smaller dispersion.
+    kernel : (offsets, weights), optional
+        How each bin averages the true PSD: offsets in bins and weights (summing to 1),
+        e.g. :func:`welch_kernel` for a Welch estimate (the window's main lobe) or
+        :func:`block_kernel` for a block average.  The model is averaged the same way, so
+        a peak a few bins wide is not broadened relative to the data (without it, Klipper's
+        Kaiser window biased damping by +3-4 %).  None: point values.
     """
 
     freqs: np.ndarray
@@ -94,6 +106,41 @@ class Spectrum:
     source: str = ""
     correlation: float | None = None
     dispersion_floor: float | None = None
+    kernel: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        f = v.strict_real_array(self.freqs, "freqs")
+        P = v.strict_real_array(self.psd, "psd")
+        E = v.strict_real_array(self.excitation, "excitation")
+        if f.ndim != 1 or P.shape != f.shape or E.shape != f.shape or f.size < 4:
+            raise ValueError(f"freqs, psd and excitation must be 1-D of one length (at least 4), got {f.shape}, "
+                             f"{P.shape}, {E.shape}")
+        if np.any(np.diff(f) <= 0) or f[0] < 0:
+            raise ValueError("freqs must increase from >= 0 Hz")
+        if np.any(P < 0) or np.any(E < 0):
+            raise ValueError("psd and excitation must be >= 0")
+        try:
+            lo, hi = (v.real(b, "band") for b in self.band)
+        except (TypeError, ValueError):
+            raise ValueError(f"band must be two frequencies (low, high) in Hz, got {self.band!r}") from None
+        if not 0 <= lo < hi:
+            raise ValueError(f"band must satisfy 0 <= low < high, got ({lo:g}, {hi:g})")
+        norm = None
+        if self.normalisation is not None:
+            norm = v.strict_real_array(self.normalisation, "normalisation")
+            if norm.shape != f.shape or np.any(norm < 0):
+                raise ValueError("normalisation must be >= 0, one value per frequency")
+        if math.isfinite(self.resolution) and not self.resolution > 0:
+            raise ValueError(f"resolution must be > 0 Hz, got {self.resolution:g}")
+        for name in ("correlation", "dispersion_floor"):
+            val = getattr(self, name)
+            if val is not None and not (math.isfinite(val) and val > 0):
+                raise ValueError(f"{name} must be > 0 or None, got {val!r}")
+        object.__setattr__(self, "freqs", f)
+        object.__setattr__(self, "psd", P)
+        object.__setattr__(self, "excitation", E)
+        object.__setattr__(self, "band", (lo, hi))
+        object.__setattr__(self, "normalisation", norm)
 
 
 @dataclass
@@ -165,24 +212,40 @@ class _Model:
         sel = (spec.freqs >= lo) & (spec.freqs <= hi) & (spec.psd > 0) & (spec.excitation > 0)
         self.f = spec.freqs[sel]
         self.P = spec.psd[sel]
-        self.E = spec.excitation[sel]
-        self.norm = np.ones_like(self.f) if spec.normalisation is None else spec.normalisation[sel]
-        self.s = 2j * math.pi * self.f
         self.low = spec.low_frequency and lo < 20.0
         self.weights = 1.0 / _smooth(self.P)
         self.floor = 0.05 / self.weights
         self.correlation = spec.correlation
         self.dispersion_floor = spec.dispersion_floor
-        f2 = self.f ** 2
-        x2 = (2 * f2 - (f2[0] + f2[-1])) / (f2[-1] - f2[0]) if f2.size > 1 else f2 * 0.0
+        # the model is evaluated on sub-points of each bin and averaged with the estimator's kernel
+        offsets, kw = spec.kernel if spec.kernel is not None else (np.zeros(1), np.ones(1))
+        step = float(spec.resolution) if math.isfinite(spec.resolution) else float(np.median(np.diff(spec.freqs)))
+        ff = (self.f[:, None] + np.asarray(offsets, float)[None, :] * step).ravel()
+        ff = np.maximum(ff, 0.05 * step)
+        self.kernel_weights = np.asarray(kw, float) / float(np.sum(kw))
+        self.nsub = self.kernel_weights.size
+        # excitation and normalisation between bins: linear interpolation of the smooth curves
+        E = np.interp(ff, spec.freqs, spec.excitation)
+        self.norm_f = np.interp(ff, spec.freqs, spec.normalisation) if spec.normalisation is not None else \
+            np.ones_like(ff)
+        self.E_parts = [E * self.norm_f]
+        f2 = ff ** 2
+        b0, b1 = self.f[0] ** 2, self.f[-1] ** 2
+        x2 = (2 * f2 - (b0 + b1)) / (b1 - b0) if b1 > b0 else f2 * 0.0
         self.cheb = np.polynomial.chebyshev.chebvander(x2, 2 * _MAX_MODES)
-        self.W2 = (2 * math.pi * self.f) ** 2
-        extra = [(self.f[0] / self.f) ** 2] if self.low else []
-        self.extra = np.column_stack(extra + [np.ones_like(self.f)]) * self.norm[:, None]
+        self.W2 = (2 * math.pi * ff) ** 2
+        extra = [(self.f[0] / ff) ** 2] if self.low else []  # the slow sweep's lines
+        self.extra = self._reduce(np.column_stack(extra + [np.ones_like(ff)]) * self.norm_f[:, None])
+
+    def _reduce(self, A: np.ndarray) -> np.ndarray:
+        """Kernel average of sub-point columns ``[bins * nsub, k]`` onto the bins ``[bins, k]``."""
+        if self.nsub == 1:
+            return A
+        return np.einsum("bsk,s->bk", A.reshape(self.f.size, self.nsub, A.shape[1]), self.kernel_weights)
 
     def _denominator(self, theta: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
         """``prod_k |D_k|^2 / w_k^4`` and, per mode, ``d ln(.)/d ln w_k`` and ``d ln(.)/d zeta_k``."""
-        den = np.ones_like(self.f)
+        den = np.ones_like(self.W2)
         grads = []
         W2 = self.W2
         for k in range(theta.size // 2):
@@ -194,28 +257,26 @@ class _Model:
             grads.append(((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
         return den, grads
 
-    def columns(self, theta: np.ndarray, grads: bool = False) -> np.ndarray | tuple[np.ndarray, list[np.ndarray]]:
+    def columns(self, theta: np.ndarray) -> np.ndarray:
         """``E R(f^2) / prod |D_k|^2`` with ``R`` a polynomial of degree ``2 n`` (Chebyshev basis), ``1/f^2``, 1.
 
         ``sum_c |H_c|^2`` over any number of channels is ``R(f^2) / prod_k |D_k(j 2 pi f)|^2``
         with ``R >= 0`` of degree ``2 n`` in ``f^2`` (the numerators of ``H_c`` have degree
         ``2 n`` in ``s``), and by spectral factorisation every such ``R`` is one channel's
         ``|numerator|^2``: one basis serves a single axis and Klipper's sum of axes.
-        With ``grads``, also the derivative of the columns with respect to each pole parameter.
         """
+        return self._columns(theta)[0]
+
+    def _columns(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+        """The columns, the modal columns on the kernel's sub-points, and the pole gradients of ``ln prod``."""
         n = theta.size // 2
         den, dl = self._denominator(theta)
-        modal = self.cheb[:, : 2 * n + 1] * (self.E * self.norm / den)[:, None]
-        extra = self.extra
-        A = np.hstack([modal, extra])
-        if not grads:
-            return A
-        dA = []
-        zeros = np.zeros_like(extra)
-        for gw, gz in dl:
-            dA.append(np.hstack([-modal * gw[:, None], zeros]))
-            dA.append(np.hstack([-modal * gz[:, None], zeros]))
-        return A, dA
+        basis = self.cheb[:, : 2 * n + 1]
+        # the slow sweep's lines (below ~15 Hz, where |H|^2 is nearly constant) are an extra column
+        # outside the modes: putting them through the modes' denominator with a numerator of their own
+        # bent the peaks and biased damping by +1 %; modes under 15 Hz are flagged instead
+        modal = basis * (self.E_parts[0] / den)[:, None]
+        return np.hstack([self._reduce(modal), self.extra]), modal, dl
 
     def _projection(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """SVD of the weighted, column-scaled design (rank-truncated): U, s, Vt, column scales."""
@@ -242,14 +303,16 @@ class _Model:
         return self.residual_and_jacobian(theta)[1]
 
     def residual_and_jacobian(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        A, dA = self.columns(theta, grads=True)
+        A, modal, dl = self._columns(theta)
         U, sv, Vt, scale = self._projection(A)
         y = self.P * self.weights
         proj = U.T @ y
         coef = (Vt.T @ (proj / sv)) / scale
+        # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
+        q = modal @ coef[: modal.shape[1]]
         J = np.empty((self.f.size, theta.size))
-        for k, dAk in enumerate(dA):
-            d = (dAk @ coef) * self.weights
+        for k, g in enumerate(x for pair in dl for x in pair):
+            d = self._reduce((-q * g)[:, None])[:, 0] * self.weights
             J[:, k] = -(d - U @ (U.T @ d))
         return y - U @ proj, J
 
@@ -383,31 +446,47 @@ def _fit_new_pole(model: _Model, theta: np.ndarray, new: np.ndarray) -> tuple[np
 
 
 def _peaks(model: _Model, k: int, exclude: list[float], M: np.ndarray | None = None) -> list[tuple[float, float]]:
-    """Candidate (frequency, zeta) where the data exceed the current model ``M`` most, most prominent first."""
-    ref = model.E * model.norm if M is None else np.maximum(M, model.floor)
-    R = _smooth(model.P / ref, 3)
-    idx, props = signal.find_peaks(np.log(R), prominence=0.05)
+    """Candidate (frequency, zeta) where the data exceed the current model ``M`` most, most prominent first.
+
+    Peaks of ``log(P / M)`` lightly smoothed (a 3-bin mean: a median would flatten a peak
+    one or two bins wide); the damping guess is the half width of the excess ``P/M - 1``.
+    """
+    ref = model._reduce(model.E_parts[0][:, None])[:, 0] if M is None else np.maximum(M, model.floor)
+    R = model.P / ref
+    L = np.convolve(np.log(np.maximum(R, 1e-300)), np.ones(3) / 3.0, mode="same")
+    idx, props = signal.find_peaks(L, prominence=0.05)
     order = np.argsort(props["prominences"])[::-1] if idx.size else []
+    step = float(np.median(np.diff(model.f))) if model.f.size > 1 else 1.0
     out: list[tuple[float, float]] = []
     for i in (idx[order] if idx.size else []):
+        i = int(max(i - 1, 0) + np.argmax(R[max(i - 1, 0):i + 2]))  # the highest bin next to the smoothed peak
         fp = float(model.f[i])
         if any(abs(fp - e) < 0.03 * e for e in exclude):
             continue
-        half = R[i] / 2.0
+        X = R - 1.0
+        half = 0.5 * X[i]
         a = i
-        while a > 0 and R[a] > half:
+        while a > 0 and X[a] > half:
             a -= 1
         b = i
-        while b < R.size - 1 and R[b] > half:
+        while b < R.size - 1 and X[b] > half:
             b += 1
-        z = (model.f[b] - model.f[a]) / (2.0 * fp)
-        out.append((fp, float(np.clip(z, 0.01, 0.4))))
+        width = max(float(model.f[b] - model.f[a]) - step, step)  # between the half-power crossings
+        out.append((fp, float(np.clip(width / (2.0 * fp), 0.003, 0.4))))
         if len(out) >= k:
             break
     return out
 
 
 # ----------------------------------------------------------------------------- public
+
+
+def _record_args(X: Any, name: str, fs: Any, resolution: Any) -> tuple[np.ndarray, float, float]:
+    """A record (1-D, or 2-D with one column per channel, made 2-D), its rate and the resolution asked for."""
+    X = v.strict_real_array(X, name)
+    if X.ndim not in (1, 2):
+        raise ValueError(f"{name} must be 1-D or 2-D (columns summed), got shape {X.shape}")
+    return np.atleast_2d(X.T).T, v.positive(fs, "fs"), v.positive(resolution, "resolution")
 
 
 def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> tuple[np.ndarray, np.ndarray, int]:
@@ -421,8 +500,11 @@ def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> t
     block.  A 1 % cosine taper at the ends keeps a record that does not start or end
     at rest from leaking.  Returns ``(freqs, psd, bins_per_block)``.
     """
-    X = np.atleast_2d(np.asarray(X).T).T
+    X, fs, resolution = _record_args(X, "X", fs, resolution)
     n = X.shape[0]
+    if not 2.0 * fs / n <= resolution <= fs / 8.0:
+        raise ValueError(f"resolution must be in [{2.0 * fs / n:.3g}, {fs / 8.0:.3g}] Hz for {n} samples at {fs:g} Hz, "
+                         f"got {resolution:g}")
     taper = signal.windows.tukey(n, 0.02).astype(np.float32)
     nfft = sp_fft.next_fast_len(n, real=True)
     # single precision: the blocks average hundreds of bins, 1e-7 relative rounding is far below their scatter
@@ -441,6 +523,25 @@ def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> t
     return f, blocks, k
 
 
+def welch_kernel(win: np.ndarray | None = None, half_width: float = 3.0, step: float = 0.5
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """How a Welch bin averages the true PSD: the window's power response ``|W(delta)|^2``.
+
+    Sampled every ``step`` bins over ``+-half_width`` bins (Kaiser beta 6, Klipper's
+    window, by default: its main lobe spans about +-2.2 bins).  Returns ``(offsets, weights)``.
+    """
+    win = np.kaiser(256, 6.0) if win is None else np.asarray(win, dtype=float)
+    delta = np.arange(-half_width, half_width + 1e-9, step)
+    n = np.arange(win.size)
+    W = np.abs(np.exp(-2j * math.pi * np.outer(delta, n) / win.size) @ win) ** 2
+    return delta, W / W.sum()
+
+
+def block_kernel(sub: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """How a block average of raw periodogram bins averages the true PSD: uniformly over the block."""
+    return (np.arange(sub) + 0.5) / sub - 0.5, np.full(sub, 1.0 / sub)
+
+
 def window_correlation(win: np.ndarray, lags: int = 4) -> float:
     """``1 + 2 sum_m rho_m^2``: variance inflation of a sum over neighbouring periodogram bins.
 
@@ -448,7 +549,10 @@ def window_correlation(win: np.ndarray, lags: int = 4) -> float:
     coefficients of a windowed segment ``m`` bins apart (Percival and Walden, ch. 6); the
     power values correlate as ``rho_m^2``.  Kaiser beta 6 (Klipper's window): 1.96.
     """
-    W = np.asarray(win, dtype=float) ** 2
+    W = v.strict_real_array(win, "win") ** 2
+    lags = v.integer_in_range(lags, "lags", 1, 64)
+    if W.ndim != 1 or W.size < 4 or not W.sum() > 0:
+        raise ValueError("win must be a window of at least 4 samples, not all 0")
     n = np.arange(W.size)
     rho = [abs(complex(np.sum(W * np.exp(-2j * math.pi * n * m / W.size)))) / float(W.sum()) for m in range(1, lags + 1)]
     return 1.0 + 2.0 * float(sum(r * r for r in rho))
@@ -456,7 +560,10 @@ def window_correlation(win: np.ndarray, lags: int = 4) -> float:
 
 def welch_dispersion(win: np.ndarray, segments: float) -> float:
     """Variance of ``P_welch / P`` for Gaussian noise: ``(1 + 2 c^2) / K`` with ``c`` the half-overlap correlation."""
-    W = np.asarray(win, dtype=float)
+    W = v.strict_real_array(win, "win")
+    if W.ndim != 1 or W.size < 4 or not float(W @ W) > 0:
+        raise ValueError("win must be a window of at least 4 samples, not all 0")
+    segments = v.positive(segments, "segments")
     h = W.size // 2
     c = float(W[h:] @ W[: W.size - h]) / float(W @ W)
     return (1.0 + 2.0 * c * c) / max(float(segments), 1.0)
@@ -474,18 +581,27 @@ def welch_psd(y: np.ndarray, fs: float, resolution: float = 1.0) -> tuple[np.nda
     lengths do; the columns of a 2-D ``y`` are summed (Klipper's ``psd_xyz``).  All
     segments of all columns go through one batched FFT.  Returns ``(freqs, psd, n_segments)``.
     """
-    Y = np.atleast_2d(np.asarray(y, dtype=float).T).T
+    Y, fs, resolution = _record_args(y, "y", fs, resolution)
     n = Y.shape[0]
+    if n < 64:
+        raise ValueError(f"y needs at least 64 samples for a Welch estimate, got {n}")
+    if fs / resolution > 1e8:
+        raise ValueError(f"fs / resolution = {fs / resolution:.3g} samples per segment; raise resolution")
     M = 1 << int(math.ceil(math.log2(max(fs / resolution, 16))))
     M = min(M, 1 << int(math.floor(math.log2(max(n // 4, 16)))))
     step = M // 2
     k = max(1, (n - M) // step + 1)
     win = np.kaiser(M, 6.0)
     P = np.zeros(M // 2 + 1)
+    # single precision for the segments (the estimate averages k of them: 1e-7 relative rounding is far
+    # below its scatter), double for the sum
+    win32 = win.astype(np.float32)
     for j in range(Y.shape[1]):
-        frames = np.lib.stride_tricks.sliding_window_view(Y[:, j], M)[::step][:k]
-        frames = (frames - frames.mean(axis=1, keepdims=True)) * win
-        P += np.sum(np.abs(sp_fft.rfft(frames, axis=1, workers=-1)) ** 2, axis=0)
+        frames = np.lib.stride_tricks.sliding_window_view(Y[:, j].astype(np.float32), M)[::step][:k]
+        frames = (frames - frames.mean(axis=1, keepdims=True)) * win32
+        Z = sp_fft.rfft(frames, axis=1, workers=-1)
+        R = Z.view(np.float32).reshape(k, -1, 2)
+        P += np.einsum("kfc,kfc->f", R, R, dtype=np.float64)
     P *= 1.0 / (fs * float(win @ win) * k)
     P[1:-1] *= 2.0  # one-sided (DC and Nyquist once)
     return np.fft.rfftfreq(M, 1.0 / fs), P, float(k)
@@ -495,36 +611,60 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
                  progress: Callable[[str], None] | None = None) -> SpectralModes:
     """Fit the modes of a resonance spectrum (module docstring).
 
-    Raises :class:`~posicast.identify.NoModeFound` when no mode passes its test, or
-    the only peaks are a rise at the band edge or broad background.
+    ``n_modes`` is the most modes to fit (1 to 6) or ``"auto"`` (up to ``max_modes``);
+    modes the data do not demand are dropped either way.  Raises
+    :class:`~posicast.identify.NoModeFound` when no mode passes its test, or the only
+    peaks are a rise at the band edge or broad background.
     """
+    if not isinstance(spec, Spectrum):
+        raise TypeError(f"spec must be a Spectrum, got {type(spec).__name__}")
+    if n_modes != "auto":
+        n_modes = v.integer_in_range(n_modes, "n_modes", 1, _MAX_MODES)
+    max_modes = v.integer_in_range(max_modes, "max_modes", 1, _MAX_MODES)
     model = _Model(spec)
     if model.f.size < 12:
         raise ValueError(f"only {model.f.size} usable frequency bins in the band {spec.band[0]:g}-{spec.band[1]:g} Hz; "
                          "a PSD needs at least 12")
     fixed = n_modes != "auto"
     target = int(n_modes) if fixed else max_modes
-    cells = search_cells(model.f[0], model.f[-1], 1.0 / max(spec.resolution if math.isfinite(spec.resolution)
-                                                             else float(np.median(np.diff(model.f))), 1e-9))
+    bin_step = spec.resolution if math.isfinite(spec.resolution) else float(np.median(np.diff(model.f)))
+    cells = search_cells(model.f[0], model.f[-1], 1.0 / max(bin_step, 1e-9))
     # the model without modes: excitation through a flat path, sweep lines, floor
     M0 = _fit(model, np.zeros(0), iterations=0)[1]
     # forward: screen the peaks of data / current model by fitting the new pole alone, fit the best
     # jointly, and go on while it lowers the (relative) residual by more than 1 %; which of these modes
     # the data demand is decided afterwards, against the dispersion of the full model
     theta, M_cur = np.zeros(0), M0
+    first_model = M0
     rss_cur = float(np.sum(model.residual(theta) ** 2))
     while theta.size // 2 < target:
         have = [math.exp(theta[2 * k]) / (2 * math.pi) for k in range(theta.size // 2)]
         best = None
         for fp, zp in _peaks(model, 4, have, M_cur):
-            th, _ = _fit_new_pole(model, theta, np.array([math.log(2 * math.pi * fp), zp]))
-            rss = float(np.sum(model.residual(th) ** 2))
-            if best is None or rss < best[0]:
-                best = (rss, th)
+            # the width guess is poor while the model still lacks the mode: try a ladder of dampings too
+            starts = [zp] + [z for z in (0.005, 0.02, 0.06, 0.2) if not 0.67 < z / zp < 1.5]
+            for z0 in starts:
+                th, _ = _fit_new_pole(model, theta, np.array([math.log(2 * math.pi * fp), z0]))
+                rss = float(np.sum(model.residual(th) ** 2))
+                if best is None or rss < best[0]:
+                    best = (rss, th)
         if best is None:
             break
         th, M = _fit(model, best[1], iterations=0, rtol=1e-6)
         rss = float(np.sum(model.residual(th) ** 2))
+        # a second start: the n most prominent peaks of the spectrum over the mode-free model, each
+        # with its damping guess (greedy steps can settle on one broad mode covering two peaks)
+        n_new = theta.size // 2 + 1
+        direct = _peaks(model, n_new, [], first_model)
+        found = sorted(math.exp(th[2 * k]) / (2 * math.pi) for k in range(n_new))
+        same = len(direct) == n_new and all(abs(a - b) < 0.03 * b for a, b in zip(sorted(p for p, _ in direct), found))
+        if len(direct) == n_new and not same:  # greedy steps already on those peaks: nothing to gain
+            for zl in (None, 0.02, 0.05, 0.1):  # the width guesses, then one damping for all
+                th0 = np.array([[math.log(2 * math.pi * fp), zp if zl is None else zl] for fp, zp in direct]).ravel()
+                th2, M2 = _fit(model, th0, iterations=0, rtol=1e-6)
+                rss2 = float(np.sum(model.residual(th2) ** 2))
+                if rss2 < rss:
+                    th, M, rss = th2, M2, rss2
         if rss > 0.99 * rss_cur:
             break
         theta, M_cur, rss_cur = th, M, rss
@@ -554,7 +694,10 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
             dk = _deviance(model, Mk)
             lr = max(dk - dev_cur, 0.0) / test_scale
             p = float(stats.chi2.sf(lr, 4))  # its pole and two numerator coefficients
-            tests.append(ModeTest(lr, 4, p, cells, min(1.0, p * cells),
+            # a peak narrower than a bin can sit at several places within each bin: that many more tests
+            width = 2.0 * theta[2 * k + 1] * math.exp(theta[2 * k]) / (2 * math.pi)
+            cells_k = cells * max(1.0, bin_step / max(width, 1e-12))
+            tests.append(ModeTest(lr, 4, p, cells_k, min(1.0, p * cells_k),
                                   float(min(max((dk - dev_cur) / max(dev0 - dev_cur, 1e-300), 0.0), 1.0))))
             comps.append(M_cur - Mk)
         bad = [k for k in range(n) if not tests[k].significant]
@@ -613,7 +756,16 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
         raise NoModeFound(f"no resonance found in {model.f[0]:.1f}-{model.f[-1]:.1f} Hz: the only peak "
                           f"({m.freq_hz:.1f} Hz, zeta {m.zeta:.2f}) is {what}", m, tests[i])
     for i in keep:
-        if edges[i]:
+        if model.low and modes[i].freq_hz < LOW_SWEEP_LIMIT and not edges[i]:
+            # the slow sweep's lines (odd multiples of 1/P) dominate there and are not a smooth excitation
+            edges[i] = True
+            notes.append(f"{modes[i].freq_hz:.1f} Hz lies where the slow sweep's lines dominate (under "
+                         f"{LOW_SWEEP_LIMIT:.0f} Hz): reported, not resolved")
+        if modes[i].zeta <= 1.5 * _ZETA_BOUNDS[0]:
+            edges[i] = True
+            notes.append(f"{modes[i].freq_hz:.1f} Hz has the smallest damping the fit allows: the peak is "
+                         "narrower than the resolution, its damping is not resolved")
+        elif edges[i]:
             notes.append(f"{modes[i].freq_hz:.1f} Hz lies at the edge of the excited band: reported, not resolved")
     return SpectralModes([modes[i] for i in keep], [ivs[i] for i in keep], [tests[i] for i in keep],
                          [edges[i] for i in keep], [shares[i] for i in keep], fit, notes)
