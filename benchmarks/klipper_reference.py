@@ -12,7 +12,7 @@ copied here.  Two sources are supported:
   is put on ``sys.path`` and ``extras.shaper_calibrate`` is imported from it (current
   Klipper master: new EI shapers, worst case over files, recommendation rework).
 
-What it provides (see /work/notes/klipper.md for the formulas):
+What it provides (see docs/firmware.md, part 1, for the formulas):
 
 (a) :meth:`Comparator.calibrate`: Klipper's whole pipeline on logs (``np.loadtxt`` of
     a raw ``#time,accel_x,accel_y,accel_z`` log, Welch PSD, ``normalize_to_frequencies``,
