@@ -49,6 +49,8 @@ def test_sensitivity_writes_figure(tmp_path, capsys):
         (["design", "zv", "--omega", "1", "--zeta", "0.1", "--vtol", "0.1"], "vtol"),
         (["design", "zv", "--zeta", "0.1"], "omega"),
         (["design", "zv", "--omega", "abc", "--zeta", "0.1"], "omega"),
+        (["identify", "no_such_file.csv", "--modes", "9"], "--modes must be an integer in [1, 6]"),
+        (["identify", "no_such_file.csv", "--modes", "two"], "--modes must be an integer in [1, 6]"),
     ],
 )
 def test_errors_are_one_line_exit_2(argv, word, capsys):

@@ -235,6 +235,11 @@ def test_identify_validates() -> None:
         posicast.identify(t, t, t, method="magic")
     with pytest.raises(ValueError, match="n_modes must be an integer >= 1"):
         posicast.identify(t, t, t, n_modes=0)
+    # the cost grows as about n_modes^4 (13 modes of 400 samples took 5 s): six is the most one fit takes
+    with pytest.raises(ValueError, match=r"n_modes must be an integer in \[1, 6\], got 7"):
+        posicast.identify(t, t, t, n_modes=7)
+    with pytest.raises(ValueError, match=r"max_modes must be an integer in \[1, 6\], got 9"):
+        posicast.identify(t, t, t, n_modes="auto", max_modes=9)
     with pytest.raises(ValueError, match="u is required"):
         posicast.identify(t, None, t)
     with pytest.raises(ValueError, match="t must be strictly increasing"):

@@ -79,7 +79,7 @@ def _build_parser() -> _Parser:
     i.add_argument("--input", help="input column (omit for output-only data)")
     i.add_argument("--output", help="output column (not for Klipper files)")
     i.add_argument("--axis", choices=("x", "y", "z"), help="tested axis of a Klipper file whose name does not say")
-    i.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
+    i.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
     i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
     i.add_argument("--json", action="store_true", help="machine-readable output")
 
@@ -102,7 +102,7 @@ def _build_parser() -> _Parser:
                         "against the tool's own pick, in [0, 0.2] (default 0.01)")
     c.add_argument("--input", help="input column (input/output CSV)")
     c.add_argument("--output", help="output column (input/output CSV)")
-    c.add_argument("--modes", default="auto", help="number of modes or 'auto' (default)")
+    c.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
     c.add_argument("--json", action="store_true", help="machine-readable output")
     c.add_argument("--plot", help="write the calibration figure (png, pdf, svg)")
     c.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
@@ -233,14 +233,15 @@ def _tune_cmd(args: argparse.Namespace) -> int:
 
 
 def _n_modes(text: str) -> Any:
+    from .identify.significance import MAX_MODES
     if text == "auto":
         return "auto"
     try:
         n = int(text)
     except ValueError:
-        raise ValueError(f"--modes must be a positive integer or 'auto', got {text!r}") from None
-    if n < 1:
-        raise ValueError(f"--modes must be a positive integer or 'auto', got {n}")
+        raise ValueError(f"--modes must be an integer in [1, {MAX_MODES}] or 'auto', got {text!r}") from None
+    if not 1 <= n <= MAX_MODES:
+        raise ValueError(f"--modes must be an integer in [1, {MAX_MODES}] or 'auto', got {n}")
     return n
 
 
@@ -282,8 +283,8 @@ def _identify_cmd(args: argparse.Namespace) -> int:
     try:
         if args.command == "calibrate":
             return _calibrate_cmd(args, calibrate)
+        nm = _n_modes(args.modes)  # arguments before the file is read
         ds = load_csv(args.file)
-        nm = _n_modes(args.modes)
         if args.input is not None:
             if args.output is None:
                 raise ValueError("--output is required with --input")

@@ -29,10 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-__all__ = ["ALPHA", "NoModeFound", "ModeTest", "wald_test", "search_cells"]
+__all__ = ["ALPHA", "MAX_MODES", "NoModeFound", "ModeTest", "wald_test", "search_cells"]
 
 #: Level of the adjusted test: a mode whose adjusted p-value is not below it is not reported.
 ALPHA = 1e-3
+#: The most modes one fit takes (time-domain and spectral alike).
+MAX_MODES = 6
 
 
 class NoModeFound(ValueError):

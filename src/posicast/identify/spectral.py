@@ -42,14 +42,13 @@ from scipy import signal, stats
 
 from .. import _validate as v
 from ..modes import Mode
-from .significance import ModeTest, NoModeFound, search_cells
+from .significance import MAX_MODES, ModeTest, NoModeFound, search_cells
 
 __all__ = ["Spectrum", "SpectralFit", "SpectralModes", "fit_spectrum", "welch_psd", "smoothed_periodogram",
            "window_correlation", "welch_dispersion", "welch_kernel", "block_kernel", "BROAD_ZETA",
            "KAISER6_CORRELATION"]
 
 _ZETA_BOUNDS = (2e-3, 0.6)
-_MAX_MODES = 6
 #: A fitted peak this broad (the resonant gain 1/(2 zeta) is near 1) is background, not a resonance.
 BROAD_ZETA = 0.45
 #: A mode whose peak is below this share of the spectrum's maximum is not reported (Klipper's 1/20).
@@ -232,7 +231,7 @@ class _Model:
         f2 = ff ** 2
         b0, b1 = self.f[0] ** 2, self.f[-1] ** 2
         x2 = (2 * f2 - (b0 + b1)) / (b1 - b0) if b1 > b0 else f2 * 0.0
-        self.cheb = np.polynomial.chebyshev.chebvander(x2, 2 * _MAX_MODES)
+        self.cheb = np.polynomial.chebyshev.chebvander(x2, 2 * MAX_MODES)
         self.W2 = (2 * math.pi * ff) ** 2
         extra = [(self.f[0] / ff) ** 2] if self.low else []  # the slow sweep's lines
         self.extra = self._reduce(np.column_stack(extra + [np.ones_like(ff)]) * self.norm_f[:, None])
@@ -619,8 +618,8 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
     if not isinstance(spec, Spectrum):
         raise TypeError(f"spec must be a Spectrum, got {type(spec).__name__}")
     if n_modes != "auto":
-        n_modes = v.integer_in_range(n_modes, "n_modes", 1, _MAX_MODES)
-    max_modes = v.integer_in_range(max_modes, "max_modes", 1, _MAX_MODES)
+        n_modes = v.integer_in_range(n_modes, "n_modes", 1, MAX_MODES)
+    max_modes = v.integer_in_range(max_modes, "max_modes", 1, MAX_MODES)
     model = _Model(spec)
     if model.f.size < 12:
         raise ValueError(f"only {model.f.size} usable frequency bins in the band {spec.band[0]:g}-{spec.band[1]:g} Hz; "
