@@ -576,9 +576,11 @@ class Loop:
     def stability(self, *, max_evaluations: float = 5e7, timeout: float = 120.0) -> Any:
         """Full stability report of the closed loop (:func:`posicast.spectra.stability`).
 
-        ``.stable``, ``.abscissa``, ``.kind`` ('retarded', 'neutral', 'polynomial'),
-        ``.difference_abscissa`` (neutral loops), ``.strongly_stable``,
-        ``.unstable_roots``, ``.reason``.  ``max_evaluations`` and ``timeout``
+        ``.stable``, ``.marginal`` (roots on the imaginary axis within the certificate),
+        ``.kind`` ('retarded', 'neutral', 'polynomial'), ``.unstable_roots``, ``.reason``,
+        ``.difference`` (neutral loops: the difference operator's ``abscissa`` and
+        ``strongly_stable``; None otherwise); the abscissa of the loop itself is
+        :meth:`spectral_abscissa`.  ``max_evaluations`` and ``timeout``
         bound each root search (:class:`~posicast.spectra.BudgetExceeded` past them).
         """
         from ..spectra import stability

@@ -885,12 +885,9 @@ def _fine_coarse(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray], h: fl
 
 def _finish(loop: Loop, t: np.ndarray, sig: dict[str, np.ndarray], out: dict[str, np.ndarray], mode: str,
             sample_rate: float | None, accuracy: float, limit: float) -> SimulationResponse:
-    signals = {k: v for k, v in sig.items()}
-    for k, v in out.items():
-        if k == "zn":
-            continue
-        signals[k] = v
-    scale = max(1.0, max(float(np.max(np.abs(v))) for v in sig.values()))
+    signals = dict(sig)
+    signals.update({name: values for name, values in out.items() if name != "zn"})
+    scale = max(1.0, max(float(np.max(np.abs(values))) for values in sig.values()))
     diverged = None
     which = None
     first = t.size
