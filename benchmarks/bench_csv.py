@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 from _harness import fmt_time, machine_info, md_table, print_machine_info, timed
 
-from posicast.identify.data import load_csv, read_table
+from posicast.identification.data import load_csv, read_table
 
 FS = 3200.0
 HEADER = "#time,accel_x,accel_y,accel_z\n"
@@ -42,7 +42,7 @@ HEADER = "#time,accel_x,accel_y,accel_z\n"
 MEMORY_PROBE = r"""
 import sys, tracemalloc
 import numpy as np
-from posicast.identify.data import load_csv
+from posicast.identification.data import load_csv
 
 def status(key):
     with open("/proc/self/status") as fh:

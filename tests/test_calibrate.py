@@ -17,10 +17,10 @@ from posicast import Mode, NoModeFound
 from posicast.cli import main
 from posicast.firmware import Klipper, MarlinFT, Prusa, RepRapFirmware
 from posicast.firmware.klipper import klipper_recommendation
-from posicast.identify import load_csv
-from posicast.identify.calibration import identify_resonances
-from posicast.identify.resonance import resonance_data
-from posicast.identify.synthetic import klipper_dataset, klipper_resonances
+from posicast.identification import load_csv
+from posicast.identification.calibration import identify_resonances
+from posicast.identification.resonance import resonance_data
+from posicast.identification.synthetic import klipper_dataset, klipper_resonances
 
 REAL = Path(__file__).parent / "data" / "real"
 FILES = sorted(p.name for p in REAL.glob("*.csv"))

@@ -135,7 +135,7 @@ def test_seed002_sampled_28hz():
     assert zv.times[1] == pytest.approx(2.0 * T_vz, rel=1e-12)
     assert zv.amplitudes.tolist() == pytest.approx([1.0 / (1.0 + a2), a2 / (1.0 + a2)], rel=1e-12)
     # at 400 Hz the ZV delay is 7.15 samples: the streaming shaper resolves it
-    from posicast.simulate.streaming import discretize
+    from posicast.simulation.streaming import discretize
 
     assert 2.0 * T_vz * c.sample_rate == pytest.approx(7.15, abs=0.01)
     # |S_d(p)| measured: round 3.6e-2, linear 6.7e-3, lagrange3 2.3e-4 (|p| Ts = 0.44: coarse sampling)

@@ -178,7 +178,7 @@ def test_tune_ms_beyond_the_float_range_is_a_named_error(capsys):
 def test_unexpected_exception_is_one_line_with_status_70(monkeypatch, capsys):
     import importlib
 
-    shaper_design = importlib.import_module("posicast.shapers.design")
+    shaper_design = importlib.import_module("posicast.shapers.registry")
 
     def broken(*args, **kwargs):
         raise OverflowError("math range error")

@@ -1,4 +1,4 @@
-"""Issues #12 and #13 (reader part): posicast.identify.data -- speed path, memory, edge cases,
+"""Issues #12 and #13 (reader part): posicast.identification.data -- speed path, memory, edge cases,
 Klipper file variants, time units, size limit.
 
 Reference values come from np.loadtxt / float() (an independent parser), from
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from posicast.identify import data as D
-from posicast.identify.data import load_csv, read_table
+from posicast.identification import data as D
+from posicast.identification.data import load_csv, read_table
 
 RAW_HEADER = "#time,accel_x,accel_y,accel_z\n"
 STATS_LINE = "##drops=0,overflows=0,time_per_sample=0.000312500,start_range=0.000120,end_range=0.000118\n"

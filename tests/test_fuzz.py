@@ -86,8 +86,8 @@ OWNERS = (
     ("shapers/", "shapers+analysis owner"),
     ("analysis/", "shapers+analysis owner"),
     ("modes.py", "shapers+analysis owner"),
-    ("identify/data.py", "identify.data owner"),
-    ("identify/", "lead (identify)"),
+    ("identification/data.py", "identification.data owner"),
+    ("identification/", "lead (identification)"),
     ("firmware/", "lead (firmware)"),
     ("cases.py", "lead (cases)"),
     ("demo.py", "lead (demo)"),
@@ -422,7 +422,7 @@ def TUNED():
 
 @functools.lru_cache(maxsize=None)
 def SYNTH():
-    ident = importlib.import_module("posicast.identify")
+    ident = importlib.import_module("posicast.identification")
     return ident.synthetic(posicast.Mode(2 * math.pi * 5.0, 0.05), "random_binary", fs=200.0, n=400, seed=1,
                            noise=0.001)
 
@@ -492,11 +492,11 @@ def _tune_nan_filter(paths: list[str]) -> list[str]:
 def entry_table() -> list[Entry]:
     """Every public entry with its valid base call and the kinds of its arguments."""
     pc = posicast
-    ident = importlib.import_module("posicast.identify")
+    ident = importlib.import_module("posicast.identification")
     spectra = importlib.import_module("posicast.spectra")
     tune = importlib.import_module("posicast.tune")
     loops = importlib.import_module("posicast.loops")
-    simulate = importlib.import_module("posicast.simulate")
+    simulate = importlib.import_module("posicast.simulation")
     cases = importlib.import_module("posicast.cases")
     export = importlib.import_module("posicast.io.export")
     io = importlib.import_module("posicast.io")
@@ -865,7 +865,7 @@ def _entry_module(entry: Entry) -> str:
     """The module defining an entry's callable (``posicast.tune.design`` for ``tune_pd``)."""
     head = entry.label.split(".")[0].split("[")[0]
     if entry.label.startswith("identify."):
-        return "posicast.identify.synthetic"
+        return "posicast.identification.synthetic"
     for mn in ("posicast",) + tuple(f"posicast.{s}" for s in SUBPACKAGES) + EXTRA_MODULES:
         m = importlib.import_module(mn)
         if head in getattr(m, "__all__", ()) and hasattr(m, head):

@@ -10,10 +10,10 @@ import pytest
 import posicast
 from posicast import Mode, design
 from posicast.cli import main
-from posicast.identify import klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
-from posicast.identify.estimators import _radius_from_bandwidth, resonator_bandwidth
-from posicast.identify.report import SEED_MODE, trial_stats
-from posicast.identify.synthetic import simulate
+from posicast.identification import klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
+from posicast.identification.estimators import _radius_from_bandwidth, resonator_bandwidth
+from posicast.identification.report import SEED_MODE, trial_stats
+from posicast.identification.synthetic import simulate
 
 # ----------------------------------------------------------------------------- acceptance 1-2
 
@@ -245,7 +245,7 @@ def test_identify_validates() -> None:
     with pytest.raises(ValueError, match="t must be strictly increasing"):
         posicast.identify(t[::-1], t, t)
     with pytest.raises(TypeError, match="fw must be a posicast.firmware.Firmware"):
-        from posicast.identify import recommend_setting
+        from posicast.identification import recommend_setting
 
         recommend_setting("x", [])  # type: ignore[arg-type]
 

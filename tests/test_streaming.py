@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 import posicast as pc
 from posicast.io.export import export_shaper
-from posicast.simulate.streaming import FRACTIONAL, ShaperFilter, discretize, shape_signal
+from posicast.simulation.streaming import FRACTIONAL, ShaperFilter, discretize, shape_signal
 
 MODE = pc.Mode(10.0, 0.03)  # seed 000 eq. 26: F = s / (s^2 + 0.6 s + 100)
 FS = 1000.0
@@ -211,7 +211,7 @@ def test_c_export_compiles_and_runs(kind, acc, tmp_path):
 
 def test_sample_rate_beyond_the_tap_budget_is_refused_with_the_estimate():
     """A ZV at 10 rad/s is pi/10 s long: at 1e12 Hz that is 3.1e11 taps (2.5 TB), refused before allocation."""
-    from posicast.simulate.streaming import MAX_TAPS
+    from posicast.simulation.streaming import MAX_TAPS
 
     S = pc.design("zv", pc.Mode(10.0, 0.0))
     with pytest.raises(ValueError, match=r"would need about 3\.14e\+11 taps .*lower sample_rate"):

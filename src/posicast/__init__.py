@@ -20,11 +20,11 @@ from .analysis import (
 )
 from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
 from .loops import Loop, control_action, feedforward, inverse_shaper
-from .identify import Calibration, Identification, Interval, NoModeFound, calibrate, identify
+from .identification import Calibration, Identification, Interval, NoModeFound, calibrate, identify
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
 from . import cases
-from .simulate import ShaperFilter, SimulationResponse, shape_signal, simulate
+from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_abscissa, stability
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 

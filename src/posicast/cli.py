@@ -143,7 +143,7 @@ def _tune_cmd(args: argparse.Namespace) -> int:
     from . import _validate as v
     from .core.transfer import delay
     from .modes import Mode
-    from .shapers.design import design
+    from .shapers.registry import design
     from .tune import tune_pd, tune_pi
     from .tune.constraints import sensitivity_constraint
 
@@ -233,7 +233,7 @@ def _tune_cmd(args: argparse.Namespace) -> int:
 
 
 def _n_modes(text: str) -> Any:
-    from .identify.significance import MAX_MODES
+    from .identification.significance import MAX_MODES
     if text == "auto":
         return "auto"
     try:
@@ -275,10 +275,10 @@ def _at_labels(text: str | None, n: int) -> Any:
 
 
 def _identify_cmd(args: argparse.Namespace) -> int:
-    from .identify import NoModeFound, calibrate, load_csv
-    from .identify.calibration import identify_resonances
-    from .identify.estimators import identify
-    from .identify.resonance import resonance_data
+    from .identification import NoModeFound, calibrate, load_csv
+    from .identification.calibration import identify_resonances
+    from .identification.estimators import identify
+    from .identification.resonance import resonance_data
 
     try:
         if args.command == "calibrate":
@@ -335,7 +335,7 @@ def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
         import matplotlib
 
         matplotlib.use("Agg")
-        from .identify.plots import calibration_plot
+        from .identification.plots import calibration_plot
 
         _save_atomic(calibration_plot(cal), args.plot)
     if args.json:
@@ -391,7 +391,7 @@ def _save_atomic(fig: Any, out: Any, option: str = "--plot") -> None:
 
 
 def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
-    from .shapers.design import KINDS
+    from .shapers.registry import KINDS
 
     accepted = KINDS[kind].params if kind in KINDS else {}
     out = {}
@@ -437,7 +437,7 @@ def _run(argv: Sequence[str] | None) -> int:
         val = getattr(args, opt, None)
         if val is not None:
             _output_path(val, f"--{opt}")
-    from .shapers.design import KINDS, design
+    from .shapers.registry import KINDS, design
 
     if args.command in ("identify", "calibrate"):
         return _identify_cmd(args)

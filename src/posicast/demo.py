@@ -260,7 +260,7 @@ def _simulation_section(report: Report) -> None:
     import matplotlib.pyplot as plt
 
     from .loops import control_action, inverse_shaper
-    from .simulate import simulate
+    from .simulation import simulate
 
     report.section(
         "Seed 000 Fig. 7–8: set-point and disturbance responses of four schemes",
@@ -329,7 +329,7 @@ def build_report(out: str | Path) -> Path:
     from .tune.report import seed001_section
 
     seed001_section(report)
-    from .identify.report import identification_section
+    from .identification.report import identification_section
 
     identification_section(report)
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")

@@ -1,6 +1,6 @@
 """Export a shaper for a controller: discrete taps at a sample rate as JSON or a C array.
 
-The taps come from :func:`posicast.simulate.streaming.discretize` (fractional delays
+The taps come from :func:`posicast.simulation.streaming.discretize` (fractional delays
 split between samples, distributed delays integrated exactly); the export also
 carries the exact continuous-time design so a reader can re-discretise it.
 """
@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from posicast.shapers.base import Shaper
-from posicast.simulate.streaming import DiscreteShaper, discretize
+from posicast.simulation.streaming import DiscreteShaper, discretize
 
 __all__ = ["export_shaper", "EXPORT_FORMATS"]
 
@@ -120,7 +120,7 @@ def export_shaper(
     S : Shaper or DiscreteShaper
         The design (discretised here) or an already discretised one at ``sample_rate``.
     sample_rate : float
-        Samples per second (see :func:`posicast.simulate.streaming.discretize` for its limits).
+        Samples per second (see :func:`posicast.simulation.streaming.discretize` for its limits).
     format : {"json", "c"}
         ``"json"``: sample rate, nonzero taps ``{index, weight}``, the exact impulses
         (times, amplitudes), the IIR ``b``/``a`` if any and the full design.

@@ -1,6 +1,6 @@
 """Stage 1: shaper design (lumped, distributed and IIR)."""
 
 from .base import DistributedPart, Kernel, Shaper
-from .design import KINDS, ZERO_VIBRATION_KINDS, design
+from .registry import KINDS, ZERO_VIBRATION_KINDS, design
 
 __all__ = ["DistributedPart", "Kernel", "Shaper", "KINDS", "ZERO_VIBRATION_KINDS", "design"]

@@ -236,7 +236,7 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
     """
     import matplotlib.pyplot as plt
 
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     dkp = max(abs(f.result.kp / r.result.kp - 1) for f, r in zip(rows_f, rows0))
     dkd = max(abs(f.result.kd / r.result.kd - 1) for f, r in zip(rows_f, rows0))

@@ -2,10 +2,10 @@
 
 One or several files (Klipper raw logs, Klipper PSD files, or input/output CSV):
 
-1. each file is read (:func:`~posicast.identify.load_csv`), its axis taken from its
+1. each file is read (:func:`~posicast.identification.load_csv`), its axis taken from its
    name (``--axis`` when the name does not say), its spectra built
    (:mod:`.resonance`) and its modes identified with 95 % intervals
-   (:func:`~posicast.identify.spectral.fit_spectrum`); a file without a resonance is
+   (:func:`~posicast.identification.spectral.fit_spectrum`); a file without a resonance is
    reported as such;
 2. the files of one axis together (several probe points or print masses) give a
    worst-case recommendation per firmware (:mod:`.recommend`); RepRapFirmware, which

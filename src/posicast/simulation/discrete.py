@@ -13,7 +13,7 @@ loops diverge.
 Polynomials here (:func:`poly_mul`, :func:`poly_add`) are in ascending powers
 of ``z^-1`` (the ``b, a`` convention of :func:`scipy.signal.lfilter`); they
 serve only low-order feedforward filters.  Shapers are discretised by
-:func:`posicast.simulate.streaming.discretize`.
+:func:`posicast.simulation.streaming.discretize`.
 """
 
 from __future__ import annotations

@@ -20,7 +20,7 @@ Two modes:
   one); with an odd number of substeps the comparison run is at ``h / 2``.
 
 Every rational block is kept as a balanced state space and every loop is run
-as one (:mod:`posicast.simulate.discrete`), never as a product of ``z^-1``
+as one (:mod:`posicast.simulation.discrete`), never as a product of ``z^-1``
 polynomials: at small steps the poles of such a polynomial are lost near
 ``z = 1`` (stable high-order loops diverged at 0.5 ms).
 
@@ -186,9 +186,9 @@ class _ShapedLoop:
     """A loop with its shaper inside (control action or inverse shaper) on step ``h``, as a state space.
 
     ``C`` and ``G`` are discretised from their balanced continuous state
-    spaces (:func:`~posicast.simulate.discrete.discretize_ss`), the shaper's
+    spaces (:func:`~posicast.simulation.discrete.discretize_ss`), the shaper's
     IIR part likewise (Tustin prewarped as in
-    :func:`~posicast.simulate.streaming.discretize`), and the shaper's FIR taps
+    :func:`~posicast.simulation.streaming.discretize`), and the shaper's FIR taps
     act through the stored history of the shaper's input ``xs`` (``v`` for the
     control-action shaper, ``m`` for the inverse shaper, ``S m = z + n``).
     Within a step only the undelayed tap ``s0`` (plus the IIR direct term)
@@ -344,7 +344,7 @@ class _ShapedLoop:
         shaper input before the block, so it is computed for the whole block
         by one convolution; the loop is then a delay-free linear system with a
         known input, run over the block by
-        :class:`~posicast.simulate.discrete.PowerPropagator` (as accurate as
+        :class:`~posicast.simulation.discrete.PowerPropagator` (as accurate as
         :meth:`_steps`, 1e-13, and about three times faster).
         """
         N = ext.shape[1]
@@ -543,7 +543,7 @@ def _exact_closed_loop(loop: Loop, S: Shaper | None, sig: dict[str, np.ndarray],
     each impulse ``A_i`` at ``t_i = (n_i + f_i) h`` of the feedforward shaper
     feeds the held reference in two parts, before and after the instant
     ``f_i h`` inside a step (modified z-transform), so fractional delays are
-    exact.  One propagation (:func:`~posicast.simulate.discrete.propagate`) gives every signal.
+    exact.  One propagation (:func:`~posicast.simulation.discrete.propagate`) gives every signal.
     """
     from scipy.linalg import expm
 

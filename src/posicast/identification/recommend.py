@@ -372,7 +372,7 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
         raise TypeError(f"fw must be a posicast.firmware.Firmware, got {type(fw).__name__}")
     boxes = v.sequence(boxes, "boxes", min_len=1)
     if not all(isinstance(b, ModeBox) for b in boxes):
-        raise TypeError("boxes must be ModeBox objects (from posicast.identify.mode_boxes)")
+        raise TypeError("boxes must be ModeBox objects (from posicast.identification.mode_boxes)")
     if axis is not None:
         axis = v.choice(axis, "axis", ("x", "y", "z"))
     if vtol is not None:
@@ -492,7 +492,7 @@ def optimum(boxes: list[ModeBox], *, vtol: float = 0.05) -> tuple[Shaper, float,
     vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
     boxes = v.sequence(boxes, "boxes", min_len=1)
     if not all(isinstance(b, ModeBox) for b in boxes):
-        raise TypeError("boxes must be ModeBox objects (from posicast.identify.mode_boxes)")
+        raise TypeError("boxes must be ModeBox objects (from posicast.identification.mode_boxes)")
     dom = max(boxes, key=lambda b: b.weight)
     options: list[tuple[str, Shaper]] = []
     for kind, params in OPTIMUM_KINDS:

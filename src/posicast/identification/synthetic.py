@@ -323,7 +323,7 @@ def klipper_record(modes: Mode | Sequence[Mode], *, fs: float = 3200.0, gains: S
         elif test_options:
             raise TypeError("give either test= or its fields as keywords, not both")
         if not isinstance(test, ResonanceTest):
-            raise TypeError("test must be a posicast.identify.ResonanceTest")
+            raise TypeError("test must be a posicast.identification.ResonanceTest")
         fs = _rate(fs, ms)
         _, a_cmd = commanded_acceleration(test, fs)
         lead = v.real(lead, "lead")
@@ -369,7 +369,7 @@ def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3
 
 
 def klipper_dataset(modes: Mode | Sequence[Mode], *, axis: str | None = "x", **options: Any) -> Any:
-    """:func:`klipper_record` as an in-memory :class:`~posicast.identify.Dataset` (no file)."""
+    """:func:`klipper_record` as an in-memory :class:`~posicast.identification.Dataset` (no file)."""
     from .data import Dataset
 
     t, acc = klipper_record(modes, **options)

@@ -2,7 +2,7 @@
 
 Two spectra come out of every file:
 
-* the **fit spectrum** (:class:`~posicast.identify.spectral.Spectrum`): the
+* the **fit spectrum** (:class:`~posicast.identification.spectral.Spectrum`): the
   measured PSD with its excitation model and the band the test excited, for
   identification;
 * the **firmware spectrum**: the PSD exactly as Klipper's calibration scores
@@ -11,7 +11,7 @@ Two spectra come out of every file:
   Klipper's own can be compared on Klipper's terms.
 
 Raw logs: the sweep is read from the data (spectrogram ridge,
-:func:`~posicast.identify.excitation.estimate_sweep`), so the band and the test
+:func:`~posicast.identification.excitation.estimate_sweep`), so the band and the test
 method need no configuration; the fit spectrum uses 1 Hz resolution (a choice, not
 a fraction of the record: the cost is flat in the log's length).  PSD files: the
 excited band ends at the test's ``max_freq``, which Klipper does not write; it is
@@ -102,7 +102,7 @@ def _excited_end(f: np.ndarray, P: np.ndarray) -> tuple[float, str]:
 
 
 def resonance_data(ds: Dataset, axis: str | None = None) -> ResonanceData:
-    """The spectra of one loaded file (:func:`~posicast.identify.load_csv`).
+    """The spectra of one loaded file (:func:`~posicast.identification.load_csv`).
 
     Parameters
     ----------
@@ -112,7 +112,7 @@ def resonance_data(ds: Dataset, axis: str | None = None) -> ResonanceData:
         The tested axis when the file name does not say it.
     """
     if not isinstance(ds, Dataset):
-        raise TypeError(f"ds must be a posicast.identify.Dataset (from load_csv), got {type(ds).__name__}")
+        raise TypeError(f"ds must be a posicast.identification.Dataset (from load_csv), got {type(ds).__name__}")
     if axis is not None and axis not in ("x", "y", "z"):
         raise ValueError(f"axis must be 'x', 'y' or 'z', got {axis!r}")
     name_axis = getattr(ds, "axis", None)

@@ -144,7 +144,7 @@ class Spectrum:
 
 @dataclass
 class SpectralFit:
-    """Details of a spectral fit beyond :class:`~posicast.identify.Identification`.
+    """Details of a spectral fit beyond :class:`~posicast.identification.Identification`.
 
     Attributes
     ----------
@@ -612,7 +612,7 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
 
     ``n_modes`` is the most modes to fit (1 to 6) or ``"auto"`` (up to ``max_modes``);
     modes the data do not demand are dropped either way.  Raises
-    :class:`~posicast.identify.NoModeFound` when no mode passes its test, or the only
+    :class:`~posicast.identification.NoModeFound` when no mode passes its test, or the only
     peaks are a rise at the band edge or broad background.
     """
     if not isinstance(spec, Spectrum):

@@ -746,7 +746,7 @@ def _matrix_pencil(y: np.ndarray, h: float, n_modes: int) -> list[Mode]:
 
 def _psd(y: np.ndarray, fs: float, n_modes: int | str, *, band: tuple[float, float] | None,
          excitation_slope: float) -> Identification:
-    """Output-only: Welch PSD (1 Hz resolution) fitted by :func:`posicast.identify.spectral.fit_spectrum`
+    """Output-only: Welch PSD (1 Hz resolution) fitted by :func:`posicast.identification.spectral.fit_spectrum`
     with an excitation ``E(f) = f^excitation_slope``."""
     from .spectral import (KAISER6_CORRELATION, Spectrum, fit_spectrum,  # noqa: PLC0415 (spectral imports this)
                            welch_dispersion, welch_kernel, welch_psd)
@@ -785,7 +785,7 @@ def _check_signals(t: Any, u: Any, y: Any, need_u: bool) -> tuple[np.ndarray, np
     h = float(np.median(dt))
     if np.max(np.abs(dt - h)) > 0.01 * h:
         raise ValueError("t must be evenly sampled (steps vary by more than 1 %); resample first "
-                         "(posicast.identify.load_csv resamples files)")
+                         "(posicast.identification.load_csv resamples files)")
     uu = None
     if u is not None:
         uu = v.real_array(u, "u")
@@ -843,7 +843,7 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
 
     Examples
     --------
-    >>> from posicast.identify import synthetic
+    >>> from posicast.identification import synthetic
     >>> d = synthetic(Mode.from_hz(28.0, 0.05), "step", n=800, noise=0.05, seed=3)
     >>> r = identify(d.t, d.u, d.y)
     >>> m, iv = r.modes[0], r.intervals[0]
