@@ -149,7 +149,9 @@ def test_removable_singularities_of_cosine_kernel_off_the_origin():
 def test_true_pole_evaluates_to_infinity():
     tf = TransferFunction.from_poly([1.0], [1.0, 0.0])
     assert np.isinf(tf(0.0))
-    assert tf.dc_gain() == float("inf")
+    assert tf.dc_gain == float("inf")
+    with pytest.warns(FutureWarning, match="dc_gain is a property"):  # the old call still answers
+        assert tf.dc_gain() == float("inf")
 
 
 def test_dc_gain_through_integrator_cancellation():

@@ -7,8 +7,41 @@ with the exact delay transfer functions of the loops it sits in.
 >>> S = posicast.design("zvd", posicast.Mode(5.49, 0.008))
 >>> S.n_impulses, round(S.duration, 4)
 (3, 1.1445)
+
+The public names, by pipeline stage (each package has the full list):
+
+Systems (:mod:`posicast.core`)
+    ``QuasiPolynomial``, ``TransferFunction``, ``as_transfer``, ``delay``, ``Mode``.
+    One rule for coefficients: a polynomial given alone is in numpy's *descending* powers
+    (``TransferFunction.from_poly``, ``(num, den)`` tuples, ``QuasiPolynomial.from_poly``,
+    ``from_terms``, the CLI's ``--num/--den``); a coefficient *matrix* given with its delays
+    is in *ascending* powers, ``coeffs[i, k]`` multiplying ``s^k exp(-s delays[i])``
+    (``QuasiPolynomial(coeffs, delays)``, a ``(coeffs, delays)`` pair, ``.coeffs``).
+Shapers (:mod:`posicast.shapers`)
+    ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``.
+Spectra (:mod:`posicast.spectra`) -- each verb is also a method of every object
+    ``roots``, ``poles``, ``zeros``, ``stability``, ``spectral_abscissa``, ``rightmost``,
+    ``difference_spectrum``, ``Roots``.
+Loops (:mod:`posicast.loops`)
+    ``Loop``, ``feedforward``, ``control_action``, ``inverse_shaper``.
+Analysis (:mod:`posicast.analysis`)
+    ``residual_vibration``, ``sensitivity_curve``, ``insensitivity``, ``SensitivityCurve``,
+    ``Insensitivity``, ``sensitivity_plot``, ``impulse_plot``.
+Simulation (:mod:`posicast.simulation`)
+    ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``.
+Tuning (:mod:`posicast.tune`)
+    ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
+Identification and printer calibration (:mod:`posicast.identification`)
+    ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
+Case studies
+    :mod:`posicast.cases` (the seeds' plants, each with its source).
+
+A function never hides a package: ``posicast.identify`` is the function, its package is
+``posicast.identification``; ``posicast.simulate`` the function, ``posicast.simulation``
+the package; ``posicast.design`` the function, ``posicast.shapers.registry`` its module.
 """
 
+from . import cases
 from .analysis import (
     Insensitivity,
     SensitivityCurve,
@@ -19,61 +52,34 @@ from .analysis import (
     sensitivity_plot,
 )
 from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
-from .loops import Loop, control_action, feedforward, inverse_shaper
 from .identification import Calibration, Identification, Interval, NoModeFound, calibrate, identify
+from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
-from . import cases
 from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
-from .spectra import Roots, difference_spectrum, rightmost, roots, spectral_abscissa, stability
+from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "tune_pd",
-    "tune_pi",
-    "tune_pid",
-    "TuningResult",
-    "Region",
-    "Constraint",
-    "identify",
-    "calibrate",
-    "Identification",
-    "Interval",
-    "Calibration",
-    "NoModeFound",
-    "simulate",
-    "SimulationResponse",
-    "ShaperFilter",
-    "shape_signal",
+    # systems
+    "QuasiPolynomial", "TransferFunction", "as_transfer", "delay", "Mode",
+    # shapers
+    "design", "KINDS", "ZERO_VIBRATION_KINDS", "Shaper", "Kernel", "DistributedPart",
+    # spectra
+    "roots", "poles", "zeros", "stability", "spectral_abscissa", "rightmost", "difference_spectrum", "Roots",
+    # loops
+    "Loop", "feedforward", "control_action", "inverse_shaper",
+    # analysis
+    "residual_vibration", "sensitivity_curve", "insensitivity", "SensitivityCurve", "Insensitivity",
+    "sensitivity_plot", "impulse_plot",
+    # simulation
+    "simulate", "SimulationResponse", "ShaperFilter", "shape_signal",
+    # tuning
+    "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
+    # identification and calibration
+    "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
+    # case studies
     "cases",
-    "roots",
-    "Roots",
-    "stability",
-    "spectral_abscissa",
-    "rightmost",
-    "difference_spectrum",
-    "Mode",
-    "QuasiPolynomial",
-    "TransferFunction",
-    "as_transfer",
-    "delay",
-    "Shaper",
-    "Kernel",
-    "DistributedPart",
-    "design",
-    "KINDS",
-    "ZERO_VIBRATION_KINDS",
-    "residual_vibration",
-    "sensitivity_curve",
-    "SensitivityCurve",
-    "insensitivity",
-    "Insensitivity",
-    "sensitivity_plot",
-    "impulse_plot",
-    "feedforward",
-    "control_action",
-    "inverse_shaper",
-    "Loop",
 ]

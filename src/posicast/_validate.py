@@ -285,3 +285,17 @@ def refuse_large(estimate: float, limit: float, what: str, change: str, unit: st
         return f"{x:.3g}{' ' + unit if unit else ''}"
 
     raise ValueError(f"{what} would need about {show(estimate)} (limit {show(limit)}): {change}")
+
+
+# --- lead (issue #14): instances
+
+
+def instance_of(value: Any, cls: type | tuple[type, ...], name: str, what: str) -> Any:
+    """``value`` is an instance of ``cls``, or a TypeError "``name`` must be ``what``, got <type>".
+
+    >>> instance_of(2.0, float, "x", "a float")
+    2.0
+    """
+    if not isinstance(value, cls):
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+    return value

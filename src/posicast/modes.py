@@ -52,9 +52,7 @@ class Mode:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "omega", v.real_in_range(self.omega, "omega", OMEGA_MIN, OMEGA_MAX))
-        z = v.finite_real(self.zeta, "zeta")
-        if not 0.0 <= z < 1.0:
-            raise ValueError(f"zeta must be in [0, 1) (an underdamped mode), got {z:g}")
+        z = v.real_in_range(self.zeta, "zeta", 0.0, 1.0, hi_open=True, hint=" (an underdamped mode)")
         object.__setattr__(self, "zeta", z + 0.0)  # -0.0 -> 0.0
 
     @classmethod

@@ -65,24 +65,15 @@ _INS_WORK_MAX = 6e7
 
 
 def _check_shaper(shaper: Any) -> Shaper:
-    if not isinstance(shaper, Shaper):
-        raise TypeError(f"shaper must be a posicast Shaper (from posicast.design), got {type(shaper).__name__}")
-    return shaper
+    return v.instance_of(shaper, Shaper, "shaper", "a posicast Shaper (from posicast.design)")
 
 
 def _check_zeta(zeta: Any) -> float:
-    z = v.finite_real(zeta, "zeta")
-    if not 0.0 <= z < 1.0:
-        raise ValueError(f"zeta must be in [0, 1), got {z:g}")
-    return z + 0.0
+    return v.real_in_range(zeta, "zeta", 0.0, 1.0, hi_open=True) + 0.0
 
 
 def _check_reference(reference: Any) -> str:
-    if not isinstance(reference, str):
-        raise TypeError(f"reference must be one of {_REFERENCES}, got {type(reference).__name__}")
-    if reference not in _REFERENCES:
-        raise ValueError(f"reference must be one of {_REFERENCES}, got {reference!r}")
-    return reference
+    return v.choice(reference, "reference", _REFERENCES)
 
 
 def _n_terms(S: Shaper) -> int:
@@ -129,19 +120,22 @@ def _abs_response(S: Shaper, p: np.ndarray, shift: np.ndarray) -> np.ndarray:
     return out
 
 
-def residual_vibration(shaper: Shaper, omega: Any, zeta: float, reference: str = "end") -> Any:
-    """Residual vibration of a mode ``(omega, zeta)`` excited through ``shaper``.
+def residual_vibration(shaper: Shaper, omega: Any, zeta: float | None = None, reference: str = "end") -> Any:
+    """Residual vibration of a mode ``(omega, zeta)`` (or a :class:`~posicast.modes.Mode`) excited through ``shaper``.
 
     Parameters
     ----------
     shaper : Shaper
         Lumped, distributed or IIR shaper.
-    omega : float or array_like
+    omega : float or array_like or Mode
         Natural frequency (rad/s) of the actual mode: real, finite, > 0, and
         ``omega * duration <= 1e12`` (:data:`PHASE_MAX`); vectorised (non-empty).
+        Or the actual mode as a :class:`~posicast.modes.Mode` (as :func:`posicast.design`
+        takes it), and then no ``zeta``.
     zeta : float
         Damping ratio of the actual mode, ``0 <= zeta < 1`` (any value up to 1:
-        the decay is folded into each term, see the module docstring).
+        the decay is folded into each term, see the module docstring).  Required
+        with a numeric ``omega``.
     reference : {"end", "unshaped"}
         Normalisation, see the module docstring.  ``"end"`` needs a finite
         shaper duration.
@@ -168,10 +162,18 @@ def residual_vibration(shaper: Shaper, omega: Any, zeta: float, reference: str =
     >>> S = design("zv", Mode(10.0, 0.1))
     >>> float(residual_vibration(S, 10.0, 0.1)) < 1e-12
     True
+    >>> float(residual_vibration(S, Mode(10.0, 0.1))) < 1e-12      # the same mode, as design takes it
+    True
     >>> round(float(residual_vibration(design("zv", Mode(1.0, 0.0)), 1.1, 0.0)), 6)
     0.156434
     """
     S = _check_shaper(shaper)
+    if isinstance(omega, Mode):
+        if zeta is not None:
+            raise TypeError("zeta must be omitted when the mode is given as a Mode (it carries its damping)")
+        omega, zeta = omega.omega, omega.zeta
+    elif zeta is None:
+        raise TypeError("zeta is required with a numeric omega (or pass a posicast.Mode)")
     w = v.strict_real_array(omega, "omega")
     z = _check_zeta(zeta)
     ref = _check_reference(reference)
@@ -214,9 +216,7 @@ def _vibration(S: Shaper, w: np.ndarray, z: float, ref: str, name: str, unit: fl
 
 def _design_mode(shaper: Shaper, mode: Mode | None) -> Mode:
     if mode is not None:
-        if not isinstance(mode, Mode):
-            raise TypeError(f"mode must be a posicast.Mode, got {type(mode).__name__}")
-        return mode
+        return v.instance_of(mode, Mode, "mode", "a posicast.Mode")
     if len(shaper.modes) != 1:
         raise ValueError("shaper was designed for several modes (or none): pass mode= to choose one")
     return shaper.modes[0]

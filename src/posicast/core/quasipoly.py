@@ -16,6 +16,7 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 
 from .. import _validate as v
+from .verbs import QuasiPolynomialVerbs
 
 __all__ = ["QuasiPolynomial"]
 
@@ -53,14 +54,16 @@ def _nonnegative_delay(delay: object, name: str) -> float:
     return d
 
 
-class QuasiPolynomial:
+class QuasiPolynomial(QuasiPolynomialVerbs):
     """An exact quasi-polynomial ``h(s) = sum_i p_i(s) exp(-s tau_i)``.
 
     Parameters
     ----------
     coeffs : array_like, shape (m, d + 1)
         ``coeffs[i, k]`` is the coefficient of ``s**k exp(-s delays[i])``
-        (ascending powers).  A 1-D array is one row.
+        (ascending powers).  A 1-D array is one row.  posicast's one rule: a
+        coefficient matrix given with its delays is ascending; a polynomial given
+        alone (:meth:`from_poly`, ``(num, den)`` tuples) is numpy's descending.
     delays : array_like, shape (m,), optional
         Nonnegative finite delays, default ``[0]``.  Equal delays are merged.
 

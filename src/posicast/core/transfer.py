@@ -14,14 +14,26 @@ elsewhere the ratio of the first nonvanishing derivatives is used (l'Hôpital).
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 
 from .. import _validate as v
 from .quasipoly import QuasiPolynomial
+from .removable import removable_points
+from .verbs import SystemVerbs
 
 __all__ = ["TransferFunction", "as_transfer", "delay", "finite_complex", "IllPosed"]
+
+
+class _DcGain(float):
+    """A DC gain that still answers the old call ``H.dc_gain()`` (with a FutureWarning)."""
+
+    def __call__(self) -> float:
+        warnings.warn("TransferFunction.dc_gain is a property (as on Shaper): write H.dc_gain, not H.dc_gain()",
+                      FutureWarning, stacklevel=2)
+        return float(self)
 
 
 class IllPosed(ValueError, ZeroDivisionError):
@@ -48,7 +60,7 @@ _CANCEL_RTOL = 1e-11  # a Taylor coefficient below this fraction of its scale is
 _ZERO_RTOL = 1e-13  # a value below this fraction of its term scale is zero
 
 
-class TransferFunction:
+class TransferFunction(SystemVerbs):
     """An exact quasi-rational transfer function ``H(s) = N(s) / D(s)``.
 
     Parameters
@@ -238,10 +250,20 @@ class TransferFunction:
         except ValueError as exc:  # H(j omega) outside the float range: name the argument given
             raise ValueError(f"omega: {exc}") from None
 
+    @property
     def dc_gain(self) -> float:
-        """``H(0)`` as a real number (``inf`` for a pole at 0)."""
-        v = self(0.0)
-        return float(v.real) if np.isfinite(v) else float("inf")
+        """``H(0)`` as a real number (``inf`` for a pole at 0); a property, as on every posicast system."""
+        value = self(0.0)
+        return _DcGain(float(value.real) if np.isfinite(value) else float("inf"))
+
+    def removable_points(self) -> np.ndarray:
+        """Common roots of numerator and denominator (not poles, not zeros), one entry per multiplicity.
+
+        >>> S = TransferFunction(QuasiPolynomial([[1.0], [-1.0]], [0.0, 2.0]), QuasiPolynomial([[0.0, 2.0]]))
+        >>> S.removable_points()                          # (1 - e^{-2 s}) / (2 s) at s = 0
+        array([0.+0.j])
+        """
+        return removable_points(self.num, self.den)
 
     # ------------------------------------------------------------------ algebra
     @staticmethod
@@ -419,8 +441,6 @@ def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
     if mod.startswith("scipy.signal"):
         if getattr(obj, "dt", None) not in (None, 0):
             raise TypeError(f"{name}: a discrete-time scipy system is not a continuous plant")
-        import warnings
-
         with warnings.catch_warnings():  # ss -> tf leaves rounding-level leading coefficients
             warnings.simplefilter("ignore")
             tf_obj = obj.to_tf()

@@ -24,6 +24,7 @@ import numpy as np
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction, finite_complex
+from ..core.verbs import SystemVerbs
 from ..modes import Mode
 
 __all__ = ["Kernel", "DistributedPart", "Shaper", "KERNEL_SHAPES", "MAX_IMPULSES", "DECAY_MAX", "TIME_RESOLUTION"]
@@ -160,7 +161,7 @@ class DistributedPart:
 
 
 @dataclass(frozen=True, eq=False)
-class Shaper:
+class Shaper(SystemVerbs):
     """A signal shaper: exact transfer function plus impulse-response description.
 
     Build shapers with :func:`posicast.design`; combine them with ``S1 * S2``
@@ -205,19 +206,16 @@ class Shaper:
             dist = (dist,)
         if not isinstance(dist, (tuple, list)) or not all(isinstance(p, DistributedPart) for p in dist):
             raise TypeError("distributed must be a tuple of DistributedPart")
-        if self.continuous is not None and not isinstance(self.continuous, TransferFunction):
-            raise TypeError(f"continuous must be a posicast TransferFunction or None, got "
-                            f"{type(self.continuous).__name__}")
-        if not isinstance(self.name, str):
-            raise TypeError(f"name must be a string, got {type(self.name).__name__}")
+        if self.continuous is not None:
+            v.instance_of(self.continuous, TransferFunction, "continuous", "a posicast TransferFunction or None")
+        v.instance_of(self.name, str, "name", "a string")
         modes = self.modes
         if isinstance(modes, Mode):
             modes = (modes,)
         if not isinstance(modes, (tuple, list)) or not all(isinstance(m, Mode) for m in modes):
             raise TypeError("modes must be a tuple of posicast Mode")
         object.__setattr__(self, "modes", tuple(modes))
-        if not isinstance(self.params, dict):
-            raise TypeError(f"params must be a dict, got {type(self.params).__name__}")
+        v.instance_of(self.params, dict, "params", "a dict")
         t = t + 0.0  # -0.0 -> 0.0
         order = np.argsort(t, kind="stable")
         t, a = _merge_impulses(t[order], a[order])
@@ -265,7 +263,7 @@ class Shaper:
         """Static gain ``S(0)``: sum of amplitudes and weights (plus the IIR part's DC gain)."""
         g = float(self.amplitudes.sum()) + sum(p.weight for p in self.distributed)
         if self.continuous is not None:
-            g += self.continuous.dc_gain()
+            g += self.continuous.dc_gain
         return g
 
     @property
@@ -448,8 +446,7 @@ def _merge_impulses(t: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def check_mode(mode: Any, name: str = "mode") -> Mode:
     """``mode`` if it is a :class:`Mode`, else TypeError."""
-    if not isinstance(mode, Mode):
-        raise TypeError(f"{name} must be a posicast Mode, got {type(mode).__name__}")
+    v.instance_of(mode, Mode, name, "a posicast Mode")
     return mode
 
 

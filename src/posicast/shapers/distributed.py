@@ -82,8 +82,7 @@ def distributed_zv_parameters(mode: Mode, kernel: Kernel) -> tuple[float, float]
 def _zv_parameters(mode: Mode, kernel: Kernel) -> tuple[float, float, float]:
     """``(A, 1 - A, tau)``; ``1 - A = 1 / (1 + m)`` directly (it is tiny as zeta -> 1)."""
     check_mode(mode)
-    if not isinstance(kernel, Kernel):
-        raise TypeError(f"kernel must be a posicast Kernel, got {type(kernel).__name__}")
+    v.instance_of(kernel, Kernel, "kernel", "a posicast Kernel")
     if mode.decay * kernel.T > DECAY_MAX:
         T_max = DECAY_MAX / mode.decay
         raise ValueError(f"T={kernel.T:g} s is too long for a mode with decay rate zeta*omega = {mode.decay:g} 1/s: "

@@ -63,16 +63,13 @@ def _ei(mode: Mode, vtol: float, method: str) -> Shaper:
     #          the same shaper as ei_exact(mode, vtol), whose default definition is "hump";
     # "singhose": exact solution of the constraint set Singhose's fit approximates (t3 = T_d);
     # "fit": Singhose's published damped curve fit (seed 004 eq. 8, corrected).
-    if not isinstance(method, str):
-        raise TypeError(f"method must be 'exact', 'singhose' or 'fit', got {type(method).__name__}")
+    v.choice(method, "method", ("exact", "singhose", "fit"))
     if method == "exact":
         t, a = ei_exact(mode, vtol, definition="hump")
     elif method == "singhose":
         t, a = ei_exact(mode, vtol, definition="singhose")
-    elif method == "fit":
+    else:  # "fit"
         t, a = ei_fit(mode, vtol)
-    else:
-        raise ValueError(f"method must be 'exact', 'singhose' or 'fit', got {method!r}")
     return _lumped("ei", mode, t, a, vtol=vtol, method=method)
 
 
@@ -193,8 +190,7 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     >>> abs(S(Mode(1.0, 0.0).pole)) < 1e-15
     True
     """
-    if not isinstance(kind, str):
-        raise TypeError(f"kind must be a string, got {type(kind).__name__}")
+    v.instance_of(kind, str, "kind", "a string")
     key = kind.lower()
     if key not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
