@@ -285,3 +285,17 @@ def refuse_large(estimate: float, limit: float, what: str, change: str, unit: st
         return f"{x:.3g}{' ' + unit if unit else ''}"
 
     raise ValueError(f"{what} would need about {show(estimate)} (limit {show(limit)}): {change}")
+
+
+# --- spectra
+
+
+def instance(value: Any, name: str, cls: type | tuple[type, ...], what: str) -> Any:
+    """``value`` if it is an instance of ``cls``, else TypeError ``"<name> must be <what>, got <type>"``.
+
+    >>> instance(3, "n", int, "an int")
+    3
+    """
+    if not isinstance(value, cls):
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+    return value
