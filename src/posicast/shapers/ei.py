@@ -230,6 +230,8 @@ def ei_exact(mode: Mode, vtol: float, *, definition: str = "hump"
 
     Raises
     ------
+    TypeError
+        ``mode`` not a Mode, ``vtol`` not a real number, ``definition`` not a string.
     ValueError
         Bad ``vtol``/``definition``, or no admissible shaper exists for this
         ``zeta`` (the message gives the ``zeta`` range that works).
@@ -249,8 +251,7 @@ def ei_exact(mode: Mode, vtol: float, *, definition: str = "hump"
     _check_mode(mode)
     vtol = _check_vtol(vtol, solver=True)
     keys = {"singhose": "ei", "hump": "ei_hump"}
-    if not isinstance(definition, str) or definition not in keys:
-        raise ValueError(f"definition must be 'hump' or 'singhose', got {definition!r}")
+    _v.choice(definition, "definition", ("hump", "singhose"))
     prob = FAMILIES[keys[definition]]
     return to_seconds(prob, solve(keys[definition], mode.zeta, vtol), mode)
 

@@ -79,6 +79,7 @@ def rightmost(
     array([-0.17012+0.82383j, -0.17012-0.82383j])
     """
     q = prepared(h)
+    # a ValueError for every wrong n (a bool too: rightmost(h, True) is documented to say 'n must be')
     if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 100_000:
         raise ValueError(f"n must be an integer in [1, 100000], got {n!r}")
     if isinstance(max_alpha_steps, (bool, np.bool_)) or not isinstance(max_alpha_steps, (int, np.integer)) \

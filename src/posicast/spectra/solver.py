@@ -249,7 +249,7 @@ class Solver:
         0.04 wide and needs a disk of 0.3: up to the delays' step, a sixth of a chain's spacing.)
         """
         ev = self.ev
-        others = known.points[known.alive.copy()]
+        others = known.points[known.alive]  # every root already known, clusters included
         wide = 4.0 * max(self.step, self.delay_step)
         rho_c = cluster_rho_max(others, centre, wide)
         for kd in range(0, self.max_cluster):
