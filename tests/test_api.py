@@ -127,8 +127,7 @@ def _modules():
 
 
 # Shadowed today, removed by the redesign branches being merged (strict: an xfail that passes fails).
-_SHADOWED_TODAY = {"posicast.identification.excitation", "posicast.identification.synthetic",
-                   "posicast.spectra.stability"}
+_SHADOWED_TODAY = {"posicast.identification.excitation", "posicast.identification.synthetic"}
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="being moved"))

@@ -15,7 +15,7 @@ if TYPE_CHECKING:  # annotations only
     import numpy as np
 
     from ..spectra.rootfinder import Roots
-    from ..spectra.stability import SpectralAbscissa, Stability
+    from ..spectra.verdict import SpectralAbscissa, Stability
 
 __all__ = ["SystemVerbs", "QuasiPolynomialVerbs"]
 

@@ -18,7 +18,7 @@ Tools: :func:`difference_spectrum` (a neutral quasi-polynomial's difference oper
 """
 
 from .rootfinder import BudgetExceeded, RootFindingError, Roots
-from .stability import (
+from .verdict import (
     DifferenceSpectrum,
     SpectralAbscissa,
     Stability,

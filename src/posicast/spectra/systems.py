@@ -28,8 +28,8 @@ before), and as a system ``(num, den)`` (numpy descending powers) by ``poles``
 and ``zeros``.
 
 Return types: ``roots``/``poles``/``zeros`` a :class:`~posicast.spectra.rootfinder.Roots`;
-``stability`` a :class:`~posicast.spectra.stability.Stability`; ``spectral_abscissa`` a
-:class:`~posicast.spectra.stability.SpectralAbscissa` (a ``float``); ``rightmost`` an
+``stability`` a :class:`~posicast.spectra.verdict.Stability`; ``spectral_abscissa`` a
+:class:`~posicast.spectra.verdict.SpectralAbscissa` (a ``float``); ``rightmost`` an
 array; ``unstable_count`` an ``int``.
 """
 
@@ -45,9 +45,9 @@ from ..core.quasipoly import QuasiPolynomial
 from ..core.removable import removable_points
 from ..core.transfer import TransferFunction, as_transfer
 from . import rootfinder as _rf
-from . import stability as _st
+from . import verdict as _st
 from .rootfinder import Roots
-from .stability import SpectralAbscissa, Stability
+from .verdict import SpectralAbscissa, Stability
 
 __all__ = ["roots", "poles", "zeros", "stability", "spectral_abscissa", "rightmost", "unstable_count", "Characteristic",
            "characteristic_of"]
@@ -219,7 +219,7 @@ def zeros(system: Any, region: Sequence[float], *, channel: Sequence[str] | None
 def stability(h: Any, *, ignore: Any = None, max_evaluations: float = 5e7, timeout: float = 120.0) -> Stability:
     """Exponential stability of ``h`` (a quasi-polynomial) or of a system's poles.
 
-    See :func:`posicast.spectra.stability.stability`.
+    See :func:`posicast.spectra.verdict.stability`.
 
     >>> import posicast
     >>> posicast.stability(posicast.TransferFunction.from_poly([1.0], [1.0, -1.0])).reason
@@ -233,7 +233,7 @@ def stability(h: Any, *, ignore: Any = None, max_evaluations: float = 5e7, timeo
 def spectral_abscissa(h: Any, *, ignore: Any = None, max_radius: float = 2e4) -> SpectralAbscissa:
     """Largest real part of the roots of ``h`` (a system: of its poles), with a certified error.
 
-    See :func:`posicast.spectra.stability.spectral_abscissa`.
+    See :func:`posicast.spectra.verdict.spectral_abscissa`.
 
     >>> import posicast
     >>> round(posicast.spectral_abscissa(posicast.TransferFunction.from_poly([1.0], [1.0, 3.0, 2.0])), 12)
@@ -245,7 +245,7 @@ def spectral_abscissa(h: Any, *, ignore: Any = None, max_radius: float = 2e4) ->
 
 def rightmost(h: Any, n: int = 1, *, ignore: Any = None, max_alpha_steps: int = 12,
               max_radius: float = 2e4) -> np.ndarray:
-    """The ``n`` rightmost roots of ``h`` (a system: poles), see :func:`posicast.spectra.stability.rightmost`."""
+    """The ``n`` rightmost roots of ``h`` (a system: poles), see :func:`posicast.spectra.verdict.rightmost`."""
     c = _characteristic(h, "h")
     return _st.rightmost(c.quasi, n, ignore=_ignored(c.removable, ignore), max_alpha_steps=max_alpha_steps,
                          max_radius=max_radius)
@@ -253,6 +253,6 @@ def rightmost(h: Any, n: int = 1, *, ignore: Any = None, max_alpha_steps: int = 
 
 def unstable_count(h: Any, *, ignore: Any = None, max_evaluations: float = 2e6) -> int:
     """Certified number of roots (a system: poles) with ``Re s >= 0``; see
-    :func:`posicast.spectra.stability.unstable_count`."""
+    :func:`posicast.spectra.verdict.unstable_count`."""
     c = _characteristic(h, "h")
     return _st.unstable_count(c.quasi, ignore=_ignored(c.removable, ignore), max_evaluations=max_evaluations)

@@ -94,7 +94,7 @@ def _poly_tf(num_desc: np.ndarray, den_desc: np.ndarray) -> TransferFunction:
 
 
 def _common_step(delays: np.ndarray) -> float | None:
-    from ..spectra.stability import _common_step as cs
+    from ..spectra.difference import common_step as cs
 
     return cs(np.unique(delays))
 
