@@ -597,3 +597,81 @@ def test_bode_plot_refuses_nonpositive_frequencies():
     loop = posicast.control_action(G=([1.0], [1.0, 1.0, 0.0]), C=2.0)
     with pytest.raises(ValueError, match="omega must be > 0"):
         bode_plot(loop, "w", "y", [-1.0, 1.0])
+
+
+# ---------------------------------------------------------------------- registry (issue #14)
+def _feedback_shaper(b):
+    """``e = w - S (z + n)``, ``v = C e``, ``u = v``, ``z = G (u + di) + d``, ``y = F z``: the shaper on the measurement."""
+    from posicast.loops.ring import IDENTITY, Ring, Tap
+
+    nodes = ("e", "v", "u", "up", "z", "zn", "m")
+    blocks = (IDENTITY, b.C, IDENTITY, IDENTITY, b.G, IDENTITY, b.S)
+    inputs = {"w": Tap(0), "d": Tap(4), "di": Tap(3), "n": Tap(5)}
+    outputs = {"e": Tap(0), "v": Tap(1), "u": Tap(2), "z": Tap(4), "y": Tap(4, b.F), "m": Tap(6)}
+    return Ring(nodes, blocks, inputs, outputs)
+
+
+@pytest.fixture
+def feedback_shaper():
+    from posicast.loops import register_architecture, unregister_architecture
+
+    register_architecture("feedback_shaper", _feedback_shaper)
+    yield "feedback_shaper"
+    unregister_architecture("feedback_shaper")
+
+
+def test_a_new_architecture_is_one_registry_entry(feedback_shaper):
+    """A shaper in the feedback path: its channels match the hand formulas, and simulate runs it (no other code)."""
+    from scipy import signal
+
+    from posicast.loops import ARCHITECTURES
+
+    assert feedback_shaper in ARCHITECTURES
+    G, C, F = (1, [1, 1, 0]), ([10, 10], [0.01, 1]), ([1, 0], [1, 0.6, 100])
+    mode = Mode(10.0, 0.03)
+    S = design("zv", mode)
+    loop = Loop(feedback_shaper, G=G, C=C, F=F, S=S)
+    g, c, f = (posicast.as_transfer(x) for x in (G, C, F))
+    for omega in (0.3, 2.0, 9.5, 40.0):
+        s = 1j * omega
+        Gs, Cs, Fs = complex(g(s)), complex(c(s)), complex(f(s))
+        Ss = complex(sum(a * np.exp(-s * ti) for ti, a in zip(*S.impulses)))   # ZV: sum of delayed impulses
+        L = Cs * Gs * Ss
+        assert abs(complex(loop.transfer("w", "z")(s)) - Cs * Gs / (1 + L)) < 1e-12 * abs(Cs * Gs / (1 + L))
+        assert abs(complex(loop.transfer("n", "u")(s)) - (-Cs * Ss / (1 + L))) < 1e-12 * abs(Cs * Ss / (1 + L))
+        assert abs(complex(loop.transfer("d", "y")(s)) - Fs / (1 + L)) < 1e-12 * abs(Fs / (1 + L))
+        assert abs(complex(loop.transfer("w", "m")(s)) - Ss * Cs * Gs / (1 + L)) < 1e-12 * abs(Ss * Cs * Gs / (1 + L))
+    assert loop.cancelled.size == 0 and loop.characteristic.kind == "retarded"
+
+    # simulate: the notch shaper (rational) makes the loop rational, so scipy gives an independent exact reference
+    notch = design("notch", mode)
+    loop = Loop(feedback_shaper, G=G, C=C, F=F, S=notch)
+    t = np.arange(0.0, 6.0, 1e-3)
+    w = (t >= 0.5).astype(float)
+    runs = [posicast.simulate(loop, t, w=w, substeps=k) for k in (8, 32)]
+    assert all(r.mode == "continuous" and r.diverged is None for r in runs)
+    Sn = posicast.as_transfer(notch)
+    ns, ds = Sn.num.coeffs[0][::-1], Sn.den.coeffs[0][::-1]   # descending powers
+    ncg = np.polymul(C[0], G[0])
+    num = np.polymul(ncg, ds)                      # z / w = C G / (1 + C G S), by hand
+    den = np.polyadd(np.polymul(np.polymul(C[1], G[1]), ds), np.polymul(ncg, ns))
+    Phi, Gam, Cz, Dz, _ = signal.cont2discrete(signal.tf2ss(num, den), 1e-3, "zoh")
+    _, z_ref, _ = signal.dlsim((Phi, Gam, Cz, Dz, 1e-3), w)
+    err = [np.max(np.abs(r.z - z_ref[:, 0])) for r in runs]
+    # the stepped method converges to the exact response (first order after the step of w, as for control_action)
+    assert err[0] < 1e-3 and err[1] < err[0] / 3
+    # sampled and nonlinear (inactive limits) runs walk the same ring
+    sampled = posicast.simulate(loop, t, w=w, sample_rate=1000.0)
+    assert np.max(np.abs(sampled.z - z_ref[:, 0])) < 1e-2
+
+
+def test_registry_refuses_bad_entries_and_keeps_the_seeds():
+    from posicast.loops import register_architecture, unregister_architecture
+
+    with pytest.raises(ValueError, match="name must not be a registered architecture"):
+        register_architecture("feedforward", _feedback_shaper)
+    with pytest.raises(TypeError, match="build must be a callable"):
+        register_architecture("x", 3)
+    with pytest.raises(ValueError, match="name must be one of"):
+        unregister_architecture("control_action")
+    assert tuple(posicast.loops.ARCHITECTURES) == ("feedforward", "control_action", "inverse_shaper")

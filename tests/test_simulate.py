@@ -418,7 +418,7 @@ def test_crane_shaper_free_loop_sampled_matches_state_space_recursion():
 @pytest.mark.parametrize("arch", ["inverse_shaper", "control_action"])
 def test_shaped_loop_block_and_step_paths_agree(arch, monkeypatch):
     """The method of steps (blocks of the first delayed tap) equals the step-by-step update, all inputs on."""
-    from posicast.simulation import engine
+    from posicast.simulation import shaped_loop as engine
 
     loop = _crane_loop(arch, "dezv")
     t = np.arange(0.0, 3.0, 1e-3)
@@ -449,7 +449,7 @@ def test_exact_path_with_a_double_pole():
 def test_sampled_load_output_is_the_exact_held_input_response():
     """Sampled mode computes y with the loop's state (G and F discretised together); it equals the
     separate exact response (F G) up + F d for the held plant input and disturbance."""
-    from posicast.simulation.engine import _load_response
+    from posicast.simulation.shaped_loop import load_response as _load_response
 
     crane = posicast.cases.ALL["gantry_crane"]
     loop = crane.loop("control_action", None, C=([0.96, 27.2], [0.001, 1.0]))

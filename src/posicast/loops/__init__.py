@@ -5,6 +5,8 @@
 ...                                S=posicast.design("dzv", posicast.Mode(10.0, 0.03)))
 >>> loop.architecture, loop.inputs
 ('inverse_shaper', ('w', 'd', 'di', 'n'))
+>>> loop.ring.nodes                 # its ring of signals (posicast.loops.ring)
+('e', 'v', 'u', 'up', 'z', 'zn', 'm')
 """
 
 from .loop import (
@@ -19,9 +21,12 @@ from .loop import (
     inverse_shaper,
     removable_points,
 )
+from .architectures import register_architecture, unregister_architecture
 from .plots import bode_plot, nyquist_plot, spectrum_plot
+from .ring import Block, LoopBlocks, Ring, Tap
 
 __all__ = [
     "Loop", "feedforward", "control_action", "inverse_shaper", "Margins", "NyquistResponse",
     "ARCHITECTURES", "INPUTS", "removable_points", "feature_frequencies", "bode_plot", "nyquist_plot", "spectrum_plot",
+    "Ring", "Block", "Tap", "LoopBlocks", "register_architecture", "unregister_architecture",
 ]

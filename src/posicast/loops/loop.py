@@ -1,23 +1,10 @@
-"""Feedback loops with a signal shaper: the three architectures of seed 001 Fig. 1-3.
+"""Feedback loops with a signal shaper: the loop of any registered architecture (seed 001 Fig. 1-3).
 
-Every loop has the actuator-side plant ``G``, the flexible load ``F`` (outside the
-loop, ``y = F z``), the controller ``C`` and a shaper ``S``.  Four external
-inputs act on it:
-
-* ``w`` reference, ``d`` output disturbance (added to the actuator output ``z``),
-* ``di`` input disturbance (added to the plant input),
-* ``n`` measurement noise (added to the measured ``z``).
-
-=================  =================================================================
-architecture       signal equations
-=================  =================================================================
-feedforward        ``r = S w``; ``e = r - (z + n)``; ``v = C e``; ``u = v``;
-(seed 001 Fig. 1)  ``z = G (u + di) + d``; ``y = F z``
-control_action     ``e = w - (z + n)``; ``v = C e``; ``u = S v``;
-(Fig. 2, "CLSS")   ``z = G (u + di) + d``; ``y = F z``
-inverse_shaper     ``e = w - m``, ``m = (z + n) / S``; ``v = C e``; ``u = v``;
-(Fig. 3)           ``z = G (u + di) + d``; ``y = F z``
-=================  =================================================================
+The loop's blocks ``G`` (actuator-side plant), ``C`` (controller), ``F``
+(flexible load, ``y = F z``) and ``S`` (shaper) are arranged in a
+:class:`~posicast.loops.ring.Ring` by its architecture
+(:mod:`posicast.loops.architectures`: the signal equations of the three seed
+architectures, and :func:`~posicast.loops.architectures.register_architecture`).
 
 Every channel is an exact :class:`~posicast.core.transfer.TransferFunction` over
 one **common** denominator.  With each loop block written ``X = N_X / D_X`` and
@@ -35,15 +22,18 @@ singularities show up as common roots: :attr:`Loop.cancelled` lists them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
-from numpy.polynomial import polynomial as P
 
 from .. import _validate as v
+from .. import spectra
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction, as_transfer
+from .architectures import ARCHITECTURES, INPUTS, build_ring
+from .margins import Margins, NyquistResponse, margins_on_grid
+from .points import feature_frequencies, removable_points, vanishing_order
+from .ring import IDENTITY, INVERSE_SHAPER, SHAPER, Block, LoopBlocks, Ring
 
 __all__ = [
     "Loop",
@@ -58,34 +48,8 @@ __all__ = [
     "feature_frequencies",
 ]
 
-ARCHITECTURES = ("feedforward", "control_action", "inverse_shaper")
-INPUTS = ("w", "d", "di", "n")
-_COMMON_OUTPUTS = ("e", "v", "u", "z", "y")
-
-# A Taylor coefficient below this fraction of its magnitude scale counts as zero
-# when the vanishing order of a shaper's numerator/denominator is counted.
-_VANISH_RTOL = 1e-9
-# Polynomial roots closer than this (relative) are one multiple root.
-_CLUSTER_RTOL = 1e-6
-
 
 # ---------------------------------------------------------------------- internals
-@dataclass(frozen=True)
-class _Block:
-    """One block ``N / D`` of the loop; ``num = den = None`` is the identity."""
-
-    name: str
-    num: QuasiPolynomial | None = None
-    den: QuasiPolynomial | None = None
-
-    @property
-    def identity(self) -> bool:
-        return self.num is None
-
-
-_ONE = _Block("1")
-
-
 def _product(factors: Sequence[QuasiPolynomial | None]) -> QuasiPolynomial:
     out = QuasiPolynomial.constant(1.0)
     for f in factors:
@@ -106,158 +70,6 @@ def _checked_block(obj: Any, name: str) -> TransferFunction:
         raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from exc
 
 
-def feature_frequencies(tfs: Sequence[TransferFunction]) -> list[float]:
-    """Frequencies [rad/s] where the blocks ``tfs`` change: ``|root|`` of every polynomial row of their
-    numerators and denominators (nonzero roots) and ``2 pi / tau`` of every delay.
-
-    >>> feature_frequencies([TransferFunction.from_poly([1.0], [1.0, 3.0, 2.0])])   # poles -1, -2
-    [1.0, 2.0]
-    """
-    out: list[float] = []
-    for i, tf in enumerate(v.sequence(tfs, "tfs")):
-        if not isinstance(tf, TransferFunction):
-            raise TypeError(f"tfs[{i}] must be a TransferFunction, got {type(tf).__name__}")
-        for q in (tf.num, tf.den):
-            if q.is_zero:
-                continue
-            for row in q.coeffs:
-                nz = np.flatnonzero(row)
-                if nz.size and nz[-1] > nz[0]:
-                    r = P.polyroots(row[nz[0] : nz[-1] + 1])
-                    out += sorted(float(abs(x)) for x in r if abs(x) > 0 and np.isfinite(abs(x)))
-            out += [2.0 * math.pi / t for t in q.delays if t > 0]
-    return out
-
-
-def _vanishing_order(h: QuasiPolynomial, s0: complex, max_order: int = 24) -> int:
-    """Number of leading Taylor coefficients of ``h`` about ``s0`` that vanish (relative to their scale)."""
-    if h.is_zero:
-        return max_order
-    c, scale = h.taylor(s0, max_order)
-    k = 0
-    while k <= max_order and abs(c[k]) <= _VANISH_RTOL * scale[k]:
-        k += 1
-    return k
-
-
-def removable_points(num: QuasiPolynomial, den: QuasiPolynomial) -> np.ndarray:
-    """Common roots of ``num`` and ``den`` when ``den`` is a polynomial (times at most one delay).
-
-    A distributed-delay shaper ``N / D`` has ``D = p(s)`` a polynomial whose roots
-    are also roots of ``N`` (``s = 0`` for every kernel, ``s = +/- 2 pi j / T`` for
-    the cosine kernel): removable singularities of ``N / D``.  Each root of ``p``
-    at which ``num`` also vanishes is returned ``min(m_num, m_den)`` times, the
-    vanishing orders being counted with exact Taylor coefficients.  An empty
-    array when ``den`` carries several delays (its roots are not computed here).
-
-    Examples
-    --------
-    >>> import posicast
-    >>> S = posicast.design("dzv", posicast.Mode(10.0, 0.03))
-    >>> removable_points(S.num, S.den)
-    array([0.+0.j])
-    >>> removable_points(QuasiPolynomial.from_poly([1.0, 2.0]), QuasiPolynomial.from_poly([1.0, 1.0])).size
-    0
-    """
-    for name, q in (("num", num), ("den", den)):
-        if not isinstance(q, QuasiPolynomial):
-            raise TypeError(f"{name} must be a QuasiPolynomial, got {type(q).__name__}")
-    if num.is_zero or den.is_zero or not den.is_polynomial or den.degree < 1:
-        return np.zeros(0, dtype=complex)
-    row = den.coeffs[0]
-    roots = P.polyroots(row)
-    # Cluster numerically repeated roots, then count multiplicities exactly.
-    centres: list[complex] = []
-    members: list[list[complex]] = []
-    for r in sorted(roots, key=lambda z: (round(z.real, 6), round(z.imag, 6))):
-        r = complex(r)
-        for i, c in enumerate(centres):
-            if abs(r - c) <= _CLUSTER_RTOL * max(1.0, abs(c)):
-                members[i].append(r)
-                centres[i] = complex(np.mean(members[i]))
-                break
-        else:
-            centres.append(r)
-            members.append([r])
-    out: list[complex] = []
-    for c in centres:
-        if abs(c.imag) <= 1e-14 * max(1.0, abs(c)):
-            c = complex(c.real, 0.0)
-        if abs(c) <= 1e-14:
-            c = 0j
-        m = min(_vanishing_order(num, c), _vanishing_order(den, c))
-        out += [c] * m
-    return np.array(out, dtype=complex)
-
-
-@dataclass(frozen=True)
-class _Topology:
-    nodes: tuple[str, ...]  # loop signals in order; node 0 is the comparator output e
-    blocks: tuple[_Block, ...]  # blocks[i] maps node i-1 to node i (blocks[0]: the comparator, sign -1)
-    inputs: dict[str, tuple[int, _Block]]  # src -> (node where it is added, prefilter)
-    outputs: dict[str, tuple[int, _Block]]  # dst -> (loop node, postfilter)
-
-
-# ---------------------------------------------------------------------- data objects
-@dataclass(frozen=True)
-class NyquistResponse:
-    """Loop-gain frequency response ``L(j omega)`` (the data behind a Nyquist plot).
-
-    Attributes
-    ----------
-    omega : ndarray
-        Frequencies [rad/s].
-    response : ndarray of complex
-        ``L(j omega)``.
-    name : str
-        A label (the loop's architecture and shaper).
-    """
-
-    omega: np.ndarray
-    response: np.ndarray
-    name: str = ""
-
-    @property
-    def min_distance(self) -> float:
-        """``min |1 + L(j omega)|`` over the grid (the inverse of the grid's peak sensitivity)."""
-        return float(np.min(np.abs(1.0 + self.response)))
-
-
-@dataclass(frozen=True)
-class Margins:
-    """Robustness margins of a loop, read from its loop gain on the imaginary axis.
-
-    Attributes
-    ----------
-    ms, omega_ms : float
-        Peak sensitivity ``Ms = max |1 / (1 + L(j omega))|`` and where it occurs.
-    mt, omega_mt : float
-        Peak complementary sensitivity ``Mt = max |L / (1 + L)|`` and where.
-    sm : float
-        Stability margin ``1 / Ms``: the least distance of the Nyquist curve to -1.
-    gm, omega_gm : float
-        Gain margin ``1 / |L|`` at a phase crossover (``L`` real negative);
-        of several crossovers, the one closest to 1 in ``|log gm|`` (as MATLAB and
-        python-control report it).  ``inf``/``nan`` when there is none.
-    pm, omega_pm : float
-        Phase margin [deg] at a gain crossover (``|L| = 1``), the smallest in
-        absolute value.  ``inf``/``nan`` when there is none.
-
-    The margins say nothing about stability by themselves: check
-    :meth:`Loop.is_stable` (a loop with delays has infinitely many poles).
-    """
-
-    ms: float
-    omega_ms: float
-    mt: float
-    omega_mt: float
-    sm: float
-    gm: float
-    omega_gm: float
-    pm: float
-    omega_pm: float
-
-
 # ---------------------------------------------------------------------- the loop
 class Loop:
     """A feedback loop with a signal shaper, with every channel as an exact transfer function.
@@ -267,8 +79,10 @@ class Loop:
 
     Parameters
     ----------
-    architecture : {'feedforward', 'control_action', 'inverse_shaper'}
-        Where the shaper sits (seed 001 Fig. 1, 2, 3).
+    architecture : str
+        Where the shaper sits: ``'feedforward'``, ``'control_action'``,
+        ``'inverse_shaper'`` (seed 001 Fig. 1, 2, 3) or a name added by
+        :func:`~posicast.loops.register_architecture` (:data:`ARCHITECTURES`).
     G : plant-like
         Actuator-side plant (input: actuator command, output ``z``).
     C : plant-like
@@ -289,6 +103,9 @@ class Loop:
     S : TransferFunction or None
     shaper : object
         ``S`` as passed (e.g. the :class:`~posicast.Shaper`), or None.
+    ring : Ring
+        The loop's blocks and how they connect (:class:`~posicast.loops.ring.Ring`),
+        built by its architecture; the channels and the simulator read it.
     inputs, outputs : tuple of str
         Allowed ``src`` and ``dst`` names.
     characteristic : QuasiPolynomial
@@ -340,10 +157,10 @@ class Loop:
         self.S = None if S is None else _checked_block(S, "S")
         if self.S is not None and self.S.num.is_zero:
             raise ValueError("S is identically zero: no signal passes the shaper, so no loop can be formed")
-        self._topology = self._build_topology()
-        self.inputs: tuple[str, ...] = tuple(self._topology.inputs)
-        self.outputs: tuple[str, ...] = tuple(self._topology.outputs) + (("r",) if architecture == "feedforward" else ())
-        blocks = self._topology.blocks
+        self.ring: Ring = build_ring(architecture, self._blocks())
+        self.inputs: tuple[str, ...] = tuple(self.ring.inputs)
+        self.outputs: tuple[str, ...] = tuple(self.ring.outputs) + tuple(self.ring.external)
+        blocks = self.ring.blocks
         self._D_L = _product([b.den for b in blocks])
         self._N_L = _product([b.num for b in blocks])
         char = self._D_L + self._N_L
@@ -353,38 +170,17 @@ class Loop:
         self._shaper_removable = (
             removable_points(self.S.num, self.S.den) if self.S is not None else np.zeros(0, dtype=complex)
         )
-        in_loop = architecture != "feedforward"
+        in_loop = self.ring.has_shaper()
         self.cancelled: np.ndarray = self._shaper_removable.copy() if in_loop else np.zeros(0, dtype=complex)
         self.cancelled.flags.writeable = False
         self._channels: dict[tuple[str, str], TransferFunction] = {}
 
     # ------------------------------------------------------------------ structure
-    def _build_topology(self) -> _Topology:
-        G = _Block("G", self.G.num, self.G.den)
-        C = _Block("C", self.C.num, self.C.den)
-        F = _Block("F", self.F.num, self.F.den)
-        S = _ONE if self.S is None else _Block("S", self.S.num, self.S.den)
-        S_inv = _ONE if self.S is None else _Block("1/S", self.S.den, self.S.num)
-        if self.architecture == "feedforward":
-            #        e      v    u     up     z    zn
-            nodes = ("e", "v", "u", "up", "z", "zn")
-            blocks = (_ONE, C, _ONE, _ONE, G, _ONE)
-            w_pre = S
-        elif self.architecture == "control_action":
-            nodes = ("e", "v", "u", "up", "z", "zn")
-            blocks = (_ONE, C, S, _ONE, G, _ONE)
-            w_pre = _ONE
-        else:  # inverse_shaper
-            nodes = ("e", "v", "u", "up", "z", "zn", "m")
-            blocks = (_ONE, C, _ONE, _ONE, G, _ONE, S_inv)
-            w_pre = _ONE
-        idx = {name: i for i, name in enumerate(nodes)}
-        inputs = {"w": (0, w_pre), "d": (idx["z"], _ONE), "di": (idx["up"], _ONE), "n": (idx["zn"], _ONE)}
-        outputs = {name: (idx[name], _ONE) for name in ("e", "v", "u", "z")}
-        outputs["y"] = (idx["z"], F)
-        if "m" in idx:
-            outputs["m"] = (idx["m"], _ONE)
-        return _Topology(nodes, blocks, inputs, outputs)
+    def _blocks(self) -> LoopBlocks:
+        """The loop's blocks, for its architecture to arrange in a ring."""
+        S = IDENTITY if self.S is None else Block.of(SHAPER, self.S)
+        S_inverse = IDENTITY if self.S is None else Block.inverse_of(INVERSE_SHAPER, self.S)
+        return LoopBlocks(Block.of("G", self.G), Block.of("C", self.C), Block.of("F", self.F), S, S_inverse)
 
     def _check_pair(self, src: Any, dst: Any) -> tuple[str, str]:
         if not isinstance(src, str) or src not in self.inputs:
@@ -397,9 +193,12 @@ class Loop:
         """True if the channel's numerator and denominator both carry the shaper's removable factor."""
         if self.S is None:
             return False
-        if self.architecture == "feedforward":
-            return src == "w"
-        return True
+        if self.ring.has_shaper():
+            return True
+        shaped = (SHAPER, INVERSE_SHAPER)
+        pre = self.ring.inputs[src].block
+        post = self.ring.outputs[dst].block if dst in self.ring.outputs else pre  # external: the input's prefilter
+        return pre.name in shaped or post.name in shaped
 
     # ------------------------------------------------------------------ channels
     def transfer(self, src: str, dst: str) -> TransferFunction:
@@ -429,29 +228,14 @@ class Loop:
             self._channels[key] = self._channel(src, dst)
         return self._channels[key]
 
-    def _path(self, src: str, dst: str) -> tuple[_Block, _Block, set[int], float]:
-        """The loop's blocks on the way from input ``src`` to output ``dst``.
-
-        Returns the input's and the output's own blocks, the set of ring nodes
-        passed, and the sign (-1 when the path crosses the comparator
-        ``e = (...) - (...)``).
-        """
-        topo = self._topology
-        n_nodes = len(topo.nodes)
-        a, pre = topo.inputs[src]
-        b, post = topo.outputs[dst]
-        length = (b - a) % n_nodes
-        path = {(a + k) % n_nodes for k in range(1, length + 1)}
-        return pre, post, path, -1.0 if 0 in path else 1.0
-
     def _channel(self, src: str, dst: str) -> TransferFunction:
-        if dst == "r":  # feedforward prefilter output: outside the loop
-            if src != "w":
+        if dst in self.ring.external:  # an input's prefiltered signal (feedforward r = S w): outside the loop
+            if src != self.ring.external[dst]:
                 return TransferFunction(QuasiPolynomial.zero(), QuasiPolynomial.constant(1.0))
-            return self.S if self.S is not None else TransferFunction.constant(1.0)
-        topo = self._topology
-        pre, post, path, sign = self._path(src, dst)
-        factors = [blk.num if i in path else blk.den for i, blk in enumerate(topo.blocks)]
+            pre = self.ring.inputs[src].block
+            return TransferFunction.constant(1.0) if pre.identity else TransferFunction(pre.num, pre.den)
+        pre, post, path, sign = self.ring.path(src, dst)
+        factors = [blk.num if i in path else blk.den for i, blk in enumerate(self.ring.blocks)]
         num = _product(factors + [pre.num, post.num])
         den = _product([self.characteristic, pre.den, post.den])
         return TransferFunction(num.scaled(sign), den)
@@ -475,7 +259,7 @@ class Loop:
         >>> complex(loop.plant_gain(1j))          # (1 / j) / 0.5
         -2j
         """
-        blocks = [b for b in self._topology.blocks if b.name != "C"]
+        blocks = [b for b in self.ring.blocks if b.name != "C"]
         return TransferFunction(_product([b.num for b in blocks]), _product([b.den for b in blocks]))
 
     def controller_factor(self, src: str, dst: str) -> tuple[TransferFunction, bool]:
@@ -497,13 +281,13 @@ class Loop:
         False
         """
         src, dst = self._check_pair(src, dst)
-        if dst == "r":
-            raise ValueError("channel w -> r (the feedforward prefilter) is outside the loop: it has no controller factor")
-        topo = self._topology
-        pre, post, path, sign = self._path(src, dst)
+        if dst in self.ring.external:
+            raise ValueError(f"channel {self.ring.external[dst]} -> {dst} (the feedforward prefilter) is outside the "
+                             "loop: it has no controller factor")
+        pre, post, path, sign = self.ring.path(src, dst)
         through = False
         nums, dens = [pre.num, post.num], [pre.den, post.den]
-        for i, blk in enumerate(topo.blocks):
+        for i, blk in enumerate(self.ring.blocks):
             if blk.name == "C":
                 through = i in path
                 continue
@@ -539,7 +323,7 @@ class Loop:
         out: list[complex] = []
         for r in np.unique(self._shaper_removable):
             m = int(np.count_nonzero(self._shaper_removable == r))
-            m = min(m, _vanishing_order(tf.num, r), _vanishing_order(tf.den, r))
+            m = min(m, vanishing_order(tf.num, r), vanishing_order(tf.den, r))
             out += [complex(r)] * m
         return np.array(out, dtype=complex)
 
@@ -550,9 +334,7 @@ class Loop:
         Delegates to :func:`posicast.spectra.roots`; returns its result
         (``.roots`` repeated by multiplicity, ``.count``, ``.region``).
         """
-        from ..spectra import roots
-
-        return roots(self.characteristic, region, ignore=self.cancelled)
+        return spectra.roots(self.characteristic, region, ignore=self.cancelled)
 
     def zeros(self, src: str, dst: str, region: Any) -> Any:
         """Zeros of channel ``src -> dst`` in ``region`` (its numerator's roots less the spurious ones).
@@ -563,15 +345,11 @@ class Loop:
         tf = self.transfer(src, dst)
         if tf.num.is_zero:
             raise ValueError(f"channel {src} -> {dst} is identically zero: it has no zeros to compute")
-        from ..spectra import roots
-
-        return roots(tf.num, region, ignore=self.channel_cancelled(src, dst))
+        return spectra.roots(tf.num, region, ignore=self.channel_cancelled(src, dst))
 
     def spectral_abscissa(self) -> float:
         """Largest real part of the closed-loop poles (:func:`posicast.spectra.spectral_abscissa`)."""
-        from ..spectra import spectral_abscissa
-
-        return spectral_abscissa(self.characteristic, ignore=self.cancelled)
+        return spectra.spectral_abscissa(self.characteristic, ignore=self.cancelled)
 
     def stability(self, *, max_evaluations: float = 5e7, timeout: float = 120.0) -> Any:
         """Full stability report of the closed loop (:func:`posicast.spectra.stability`).
@@ -583,9 +361,7 @@ class Loop:
         :meth:`spectral_abscissa`.  ``max_evaluations`` and ``timeout``
         bound each root search (:class:`~posicast.spectra.BudgetExceeded` past them).
         """
-        from ..spectra import stability
-
-        return stability(self.characteristic, ignore=self.cancelled, max_evaluations=max_evaluations,
+        return spectra.stability(self.characteristic, ignore=self.cancelled, max_evaluations=max_evaluations,
                          timeout=timeout)
 
     def is_stable(self) -> bool:
@@ -611,7 +387,7 @@ class Loop:
         linear grid fine enough (40 points per ``2 pi / tau_max``) to resolve the
         ripple that the delays put on ``L(j omega)``.
         """
-        blocks = [self.G, self.C] + ([self.S] if self.S is not None and self.architecture != "feedforward" else [])
+        blocks = [self.G, self.C] + ([self.S] if self.S is not None and self.ring.has_shaper() else [])
         feats = feature_frequencies(blocks)
         if not feats:
             feats = [1.0]
@@ -654,60 +430,12 @@ class Loop:
         >>> round(m.pm, 2), m.gm                      # 1 / (s^2 + s): PM 51.83 deg, no phase crossover
         (51.83, inf)
         """
-        from scipy.optimize import brentq, minimize_scalar
-
         w = self.default_omega() if omega is None else np.unique(v.strict_real_array(omega, "omega").reshape(-1))
         if w.size < 2:
             raise ValueError("omega must contain at least 2 frequencies")
         if np.any(w < 0):
             raise ValueError("omega must be >= 0")
-        Ltf = self.loop_gain
-        S_tf = self.sensitivity
-        T_tf = self.complementary_sensitivity
-
-        def peak(tf: TransferFunction) -> tuple[float, float]:
-            mag = np.abs(tf.freqresp(w))
-            mag = np.where(np.isfinite(mag), mag, np.inf)
-            i = int(np.argmax(mag))
-            if not np.isfinite(mag[i]):
-                return math.inf, float(w[i])
-            lo, hi = w[max(i - 1, 0)], w[min(i + 1, w.size - 1)]
-            res = minimize_scalar(
-                lambda x: -abs(tf(1j * x)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-10 * max(hi, 1e-300)}
-            )
-            if -res.fun > mag[i]:
-                return float(-res.fun), float(res.x)
-            return float(mag[i]), float(w[i])
-
-        ms, w_ms = peak(S_tf)
-        mt, w_mt = peak(T_tf)
-        L = Ltf.freqresp(w)
-        fin = np.isfinite(L)
-
-        def L_at(x: float) -> complex:
-            return complex(Ltf(1j * x))
-
-        # gain crossovers |L| = 1
-        pm, w_pm = math.inf, math.nan
-        g = np.abs(L) - 1.0
-        for i in np.flatnonzero(fin[:-1] & fin[1:] & (np.sign(g[:-1]) != np.sign(g[1:]))):
-            x = brentq(lambda t: abs(L_at(t)) - 1.0, w[i], w[i + 1], xtol=1e-14 * w[i + 1])
-            p = math.degrees(np.angle(-L_at(x)))
-            if abs(p) < abs(pm):
-                pm, w_pm = p, x
-        # phase crossovers: L real negative
-        gm, w_gm = math.inf, math.nan
-        im = L.imag
-        cand = fin[:-1] & fin[1:] & (np.sign(im[:-1]) != np.sign(im[1:])) & (L.real[:-1] + L.real[1:] < 0)
-        for i in np.flatnonzero(cand):
-            x = brentq(lambda t: L_at(t).imag, w[i], w[i + 1], xtol=1e-14 * w[i + 1])
-            lx = L_at(x)
-            if lx.real >= 0 or x <= 0:
-                continue
-            gmi = -1.0 / lx.real
-            if abs(math.log(gmi)) < abs(math.log(gm)):
-                gm, w_gm = gmi, x
-        return Margins(ms, w_ms, mt, w_mt, 1.0 / ms if ms > 0 else math.inf, gm, w_gm, pm, w_pm)
+        return margins_on_grid(self.loop_gain, self.sensitivity, self.complementary_sensitivity, w)
 
     # ------------------------------------------------------------------ display
     @property

@@ -7,13 +7,19 @@ The data come from :class:`~posicast.loops.Loop` methods (``frequency_response``
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from .. import _validate as v
 from ..core.transfer import TransferFunction
+from ..spectra import roots
+from ..spectra.rootfinder import check_region
 from .loop import Loop
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = ["bode_plot", "nyquist_plot", "spectrum_plot"]
 
@@ -55,7 +61,7 @@ def bode_plot(
     omega: Any = None,
     ax: Any = None,
     labels: Sequence[str] | None = None,
-) -> tuple[Any, Any]:
+) -> tuple[Figure, Axes]:
     """Magnitude [dB] and phase [deg] of channel ``src -> dst`` of one or several loops.
 
     Parameters
@@ -138,7 +144,7 @@ def nyquist_plot(
     ms: float | None | bool = None,
     ax: Any = None,
     labels: Sequence[str] | None = None,
-) -> tuple[Any, Any]:
+) -> tuple[Figure, Axes]:
     """Nyquist curve of the loop gain ``L(j omega)`` with the ``Ms`` circle (seed 001 Fig. 7).
 
     Parameters
@@ -201,7 +207,7 @@ def spectrum_plot(
     region: Sequence[float],
     ax: Any = None,
     labels: Sequence[str] | None = None,
-) -> tuple[Any, Any]:
+) -> tuple[Figure, Axes]:
     """Plant poles, shaper zeros and closed-loop poles in the complex plane (seed 000 Fig. 6).
 
     Black diamonds: poles of ``F`` (roots of its denominator); crosses: zeros
@@ -222,9 +228,6 @@ def spectrum_plot(
     fig, ax
     """
     loops = _loops_with_labels(loop, labels)
-    from ..spectra import roots
-    from ..spectra.rootfinder import check_region
-
     region = check_region(region)
     v.axes(ax, "ax")
     import matplotlib.pyplot as plt
