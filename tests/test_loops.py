@@ -523,15 +523,16 @@ def test_channel_zeros_contain_the_shaper_zero():
     loop, S = make("inverse_shaper", "dzv")
     p = MODE.pole
     for src in ("w", "d"):
-        z = loop.zeros(src, "z", (-5.0, 1.0, -50.0, 50.0)).roots
+        z = loop.zeros((-5.0, 1.0, -50.0, 50.0), channel=(src, "z")).roots
         assert np.min(np.abs(z - p)) < 1e-8
         assert np.min(np.abs(z - p.conjugate())) < 1e-8
-    zw = loop.zeros("w", "z", (-5.0, 1.0, -50.0, 50.0)).roots
+    zw = loop.zeros((-5.0, 1.0, -50.0, 50.0), channel=("w", "z")).roots
     assert np.all(np.abs(zw) > 1e-6)  # the removable point is not a zero of w -> z
-    zd = loop.zeros("d", "z", (-5.0, 1.0, -50.0, 50.0)).roots
+    with pytest.warns(FutureWarning, match="channel"):  # the 0.1 call still answers
+        zd = loop.zeros("d", "z", (-5.0, 1.0, -50.0, 50.0)).roots
     assert np.sum(np.abs(zd) < 1e-9) == 1  # the integrator's zero of d -> z stays
     with pytest.raises(ValueError, match="identically zero"):
-        make("feedforward", "zv")[0].zeros("d", "r", (-1, 1, -1, 1))
+        make("feedforward", "zv")[0].zeros((-1, 1, -1, 1), channel=("d", "r"))
 
 
 def test_stability_reports():

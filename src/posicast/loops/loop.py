@@ -22,17 +22,21 @@ singularities show up as common roots: :attr:`Loop.cancelled` lists them.
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any, Sequence
 
 import numpy as np
 
 from .. import _validate as v
 from .. import spectra
+from ..spectra.rootfinder import Roots
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction, as_transfer
+from ..core.verbs import SystemVerbs
 from .architectures import ARCHITECTURES, INPUTS, build_ring
 from .margins import Margins, NyquistResponse, margins_on_grid
-from .points import feature_frequencies, removable_points, vanishing_order
+from ..core.removable import removable_points, vanishing_order
+from .points import feature_frequencies
 from .ring import IDENTITY, INVERSE_SHAPER, SHAPER, Block, LoopBlocks, Ring
 
 __all__ = [
@@ -71,7 +75,7 @@ def _checked_block(obj: Any, name: str) -> TransferFunction:
 
 
 # ---------------------------------------------------------------------- the loop
-class Loop:
+class Loop(SystemVerbs):
     """A feedback loop with a signal shaper, with every channel as an exact transfer function.
 
     Build one with :func:`feedforward`, :func:`control_action` or
@@ -328,41 +332,29 @@ class Loop:
         return np.array(out, dtype=complex)
 
     # ------------------------------------------------------------------ spectra
-    def poles(self, region: Any) -> Any:
-        """Closed-loop poles in ``region``: roots of :attr:`characteristic` less :attr:`cancelled`.
-
-        Delegates to :func:`posicast.spectra.roots`; returns its result
-        (``.roots`` repeated by multiplicity, ``.count``, ``.region``).
-        """
-        return spectra.roots(self.characteristic, region, ignore=self.cancelled)
-
-    def zeros(self, src: str, dst: str, region: Any) -> Any:
-        """Zeros of channel ``src -> dst`` in ``region`` (its numerator's roots less the spurious ones).
+    # poles, stability, spectral_abscissa and rightmost come from SystemVerbs (posicast.spectra.systems):
+    # the roots of :attr:`characteristic` less :attr:`cancelled`.
+    def zeros(self, region: Any = None, *args: Any, channel: Sequence[str] | None = None,
+              max_evaluations: float = 5e7, timeout: float = 120.0) -> Roots:
+        """Zeros of the channel ``channel=(src, dst)`` in ``region`` (its numerator's roots less the spurious ones).
 
         The shaper's removable points are roots of the numerator too; they are
-        removed (:meth:`channel_cancelled`).  Delegates to :func:`posicast.spectra.roots`.
+        removed (:meth:`channel_cancelled`).  The old call ``zeros(src, dst, region)``
+        still works, with a FutureWarning.
+
+        >>> loop = control_action(G=(1, [1, 1, 0]), C=([1.0, 2.0], [1.0]))
+        >>> loop.zeros((-5, 5, -5, 5), channel=("w", "z")).roots        # C G / (1 + C G): the zero of C
+        array([-2.+0.j])
         """
-        tf = self.transfer(src, dst)
-        if tf.num.is_zero:
-            raise ValueError(f"channel {src} -> {dst} is identically zero: it has no zeros to compute")
-        return spectra.roots(tf.num, region, ignore=self.channel_cancelled(src, dst))
-
-    def spectral_abscissa(self) -> float:
-        """Largest real part of the closed-loop poles (:func:`posicast.spectra.spectral_abscissa`)."""
-        return spectra.spectral_abscissa(self.characteristic, ignore=self.cancelled)
-
-    def stability(self, *, max_evaluations: float = 5e7, timeout: float = 120.0) -> Any:
-        """Full stability report of the closed loop (:func:`posicast.spectra.stability`).
-
-        ``.stable``, ``.marginal`` (roots on the imaginary axis within the certificate),
-        ``.kind`` ('retarded', 'neutral', 'polynomial'), ``.unstable_roots``, ``.reason``,
-        ``.difference`` (neutral loops: the difference operator's ``abscissa`` and
-        ``strongly_stable``; None otherwise); the abscissa of the loop itself is
-        :meth:`spectral_abscissa`.  ``max_evaluations`` and ``timeout``
-        bound each root search (:class:`~posicast.spectra.BudgetExceeded` past them).
-        """
-        return spectra.stability(self.characteristic, ignore=self.cancelled, max_evaluations=max_evaluations,
-                         timeout=timeout)
+        if isinstance(region, str):  # the 0.1 signature zeros(src, dst, region)
+            if len(args) != 2 or channel is not None:
+                raise TypeError("zeros takes (region, channel=(src, dst)); the old form is zeros(src, dst, region)")
+            warnings.warn("Loop.zeros(src, dst, region) is now zeros(region, channel=(src, dst))", FutureWarning,
+                          stacklevel=2)
+            channel, region = (region, args[0]), args[1]
+        elif args:
+            raise TypeError("zeros takes (region, channel=(src, dst))")
+        return spectra.zeros(self, region, channel=channel, max_evaluations=max_evaluations, timeout=timeout)
 
     def is_stable(self) -> bool:
         """True if every closed-loop pole has a negative real part (see :meth:`stability`)."""

@@ -134,10 +134,7 @@ def _numerator_of(system: Any, channel: Sequence[str] | None, name: str) -> Char
             raise ValueError("channel applies to a loop only")
         return Characteristic(_rf.as_quasipolynomial(system, name), np.zeros(0, dtype=complex))
     if _is_loop(system):
-        if channel is None or isinstance(channel, str) or len(channel) != 2:
-            raise ValueError(f"the zeros of a loop are those of one channel: pass channel=(src, dst), "
-                             f"src in {tuple(system.inputs)}, dst in {tuple(system.outputs)}; got {channel!r}")
-        src, dst = channel
+        src, dst = _channel(system, channel)
         tf = system.transfer(src, dst)
         if tf.num.is_zero:
             raise ValueError(f"channel {src} -> {dst} is identically zero: it has no zeros to compute")
@@ -148,6 +145,19 @@ def _numerator_of(system: Any, channel: Sequence[str] | None, name: str) -> Char
     if tf.num.is_zero:
         raise ValueError(f"{name} is identically zero: every s is a zero")
     return Characteristic(tf.num, removable_points(tf.num, tf.den))
+
+
+def _channel(loop: Any, channel: Any) -> tuple[str, str]:
+    """``channel`` as a pair of the loop's signal names ``(src, dst)``."""
+    allowed = f"src in {tuple(loop.inputs)}, dst in {tuple(loop.outputs)}"
+    if channel is None:
+        raise ValueError(f"the zeros of a loop are those of one channel: pass channel=(src, dst), {allowed}")
+    if not isinstance(channel, (tuple, list)) or len(channel) != 2 or not all(isinstance(c, str) for c in channel):
+        raise TypeError(f"channel must be a pair of signal names (src, dst), {allowed}; got {channel!r}")
+    src, dst = channel
+    if src not in loop.inputs or dst not in loop.outputs:
+        raise ValueError(f"channel must be (src, dst) with {allowed}; got {channel!r}")
+    return src, dst
 
 
 def _ignored(own: np.ndarray, ignore: Any) -> Any:
