@@ -10,7 +10,7 @@ largest ``Kp`` as secondary criterion (eq. 8, 16).  This section shows
 1. Table 1 re-computed: posicast's shaper parameters and gains on eq. 10 as
    printed, the paper's values, the peak sensitivity of the paper's own gains on
    that model, and the gains with the loop delay
-   :data:`posicast.tune.seed001.PAPER_DELAY` that reproduces the paper;
+   :data:`posicast_reports.seed001.PAPER_DELAY` that reproduces the paper;
 2. the admissible regions overlaid per structure (Fig. 5 and 6), one region in
    detail, and the Nyquist curves with the Ms circles (Fig. 7);
 3. step and output-disturbance responses of the actuator position ``z`` and the
@@ -27,9 +27,15 @@ import math
 import time
 from typing import Any, Sequence
 
+import matplotlib.pyplot as plt
 import numpy as np
 
-from ..io.report import Report
+from posicast.cases import ALL
+from posicast.loops import Loop, control_action, feedforward
+from posicast.simulation import SimulationResponse, simulate
+from posicast.tune.plots import regions_plot, tuning_nyquist_plot
+
+from .html import Report
 from .seed001 import PAPER_DELAY, Table1Row, crane_shaper, paper_point_ms, table1
 
 __all__ = ["seed001_section", "TF", "SIM_STEP", "SUBSTEPS", "HORIZON", "STEP_AT", "RESIDUAL_AFTER"]
@@ -139,9 +145,6 @@ def _table1(report: Report, rows0: Sequence[Table1Row], rows_d: Sequence[Table1R
 # ---------------------------------------------------------------------- 2. regions and Nyquist
 def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
     """Fig. 5-6 overlays, one region in detail, and Fig. 7 Nyquist plots."""
-    import matplotlib.pyplot as plt
-
-    from .plots import regions_plot, tuning_nyquist_plot
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     for ax, (structure, fig_no, ms) in zip(axes, (("inverse_shaper", 5, 2.0), ("control_action", 6, 1.2))):
@@ -188,7 +191,7 @@ def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
 
 
 # ---------------------------------------------------------------------- 3. responses
-def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
+def _sim_loop(row: Table1Row) -> tuple[Loop, str, dict[str, Any]]:
     """The loop to simulate for a design, how it is simulated, and the extra arguments of ``simulate``.
 
     The in-loop notch is rational, so its loop is simulated exactly through the
@@ -196,9 +199,6 @@ def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
     to z and y): control action with the controller ``C S``; inverse shaper as
     the shaper ``S`` in feedforward with the controller ``C / S``.
     """
-    from ..cases import ALL
-    from ..loops import control_action, feedforward
-
     res = row.result
     if row.shaper is None:
         return res.loop, "continuous (exact)", {}
@@ -212,13 +212,13 @@ def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
             "exact, as feedforward S with C/S", {})
 
 
-def _amplitude(resp: Any, after: float) -> float:
+def _amplitude(resp: SimulationResponse, after: float) -> float:
     """Half the peak-to-peak of ``y`` for ``t >= after``: the sway amplitude, whatever the phase at the end."""
     y = resp.y[resp.time >= after]
     return float(np.ptp(y) / 2) if y.size else math.nan
 
 
-def _total_variation(resp: Any) -> float:
+def _total_variation(resp: SimulationResponse) -> float:
     """Total variation of ``z`` (1 for a monotone unit step, larger for a back-and-forth actuator)."""
     return float(np.sum(np.abs(np.diff(resp.z))))
 
@@ -234,9 +234,6 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
     rows0 : sequence of Table1Row
         The ideal designs (same order), to state how close the filtered ones are.
     """
-    import matplotlib.pyplot as plt
-
-    from ..simulation import simulate
 
     dkp = max(abs(f.result.kp / r.result.kp - 1) for f, r in zip(rows_f, rows0))
     dkd = max(abs(f.result.kd / r.result.kd - 1) for f, r in zip(rows_f, rows0))
@@ -353,7 +350,7 @@ def _response_caption(key: str, dkp: float, dkd: float, ok: tuple[bool, float]) 
 
 # ---------------------------------------------------------------------- the section
 def seed001_section(report: Report) -> None:
-    """Add the seed 001 case study (Table 1, Fig. 5-12) to a :class:`posicast.io.report.Report`.
+    """Add the seed 001 case study (Table 1, Fig. 5-12) to a :class:`posicast_reports.html.Report`.
 
     Designs the 12 PDs of Table 1 three times (eq. 10 as printed; with
     :data:`~posicast.tune.seed001.PAPER_DELAY`; with the derivative filter
