@@ -285,3 +285,20 @@ def refuse_large(estimate: float, limit: float, what: str, change: str, unit: st
         return f"{x:.3g}{' ' + unit if unit else ''}"
 
     raise ValueError(f"{what} would need about {show(estimate)} (limit {show(limit)}): {change}")
+
+
+# --- layers
+
+
+def nonnegative(value: Any, name: str, unit: str = "") -> float:
+    """A finite real ``>= 0``; ``unit`` (e.g. ``' [s]'``) follows the bound in the message.
+
+    >>> nonnegative(0.0, "delay")
+    0.0
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    x = float(value)
+    if not (math.isfinite(x) and x >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0{unit}, got {x:g}")
+    return x

@@ -150,7 +150,7 @@ def identification_section(report: Report, trials: int = 30, acceptance_trials: 
                   "excitation's shape and the modes' 95 % intervals. Right: vibration left by each firmware's "
                   "recommended setting (solid) and by a Klipper-style pick on the same types (dashed), over the "
                   "spectrum the firmware scores on (grey).")
-    real = Path(__file__).resolve().parents[3] / "tests" / "data" / "real"
+    real = Path(__file__).resolve().parents[2] / "tests" / "data" / "real"  # src/posicast_reports/ -> repository
     files = sorted(real.glob("*.csv")) if real.is_dir() else []
     if files:
         rows = []
