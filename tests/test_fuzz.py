@@ -499,7 +499,6 @@ def entry_table() -> list[Entry]:
     simulate = importlib.import_module("posicast.simulation")
     cases = importlib.import_module("posicast.cases")
     export = importlib.import_module("posicast.io.export")
-    io = importlib.import_module("posicast.io")
     firmware = importlib.import_module("posicast.firmware")
     testing = importlib.import_module("posicast.testing")
     E = Entry
@@ -771,17 +770,8 @@ def entry_table() -> list[Entry]:
         E("klipper_smoothing", lambda **k: ident.klipper_smoothing(**k), lambda: {"shaper": ZV(), "accel": 5000.0,
                                                                                    "scv": 5.0},
           {"shaper": "object", "accel": "real", "scv": "real"}),
-        # ---------------------------------------------------------------- io, cases
-        E("Report", lambda **k: io.Report(**k), lambda: {"title": "t", "out_dir": str(DATA_DIR() / "report")},
-          {"title": "str", "out_dir": "path_dir"}, writes=True),
-        E("Report.figure", lambda **k: io.Report("t", DATA_DIR() / "report").figure(**k),
-          lambda: {"fig": plt.figure(), "name": "f", "caption": "c"}, {"fig": "object", "name": "str",
-                                                                        "caption": "str"}, writes=True),
-        E("Report.table", lambda **k: io.Report("t", DATA_DIR() / "report").table(**k),
-          lambda: {"headers": ["a"], "rows": [[1.0]], "digits": 4}, {"headers": "object", "rows": "object",
-                                                                    "digits": "int"}),
-        E("Report.section", lambda **k: io.Report("t", DATA_DIR() / "report").section(**k),
-          lambda: {"title": "s", "text": "x"}, {"title": "str", "text": "str"}),
+        # ---------------------------------------------------------------- cases
+        # (the report writer is posicast_reports.html.Report now, outside posicast: not a posicast entry)
         E("modes_of", lambda **k: cases.modes_of(**k), lambda: {"system": LOAD()}, {"system": "system"}),
         E("two_mass_plant", lambda **k: cases.two_mass_plant(**k), lambda: {},
           {"c1": "real", "c2": "real", "k2": "real", "m1": "real", "m2": "real"}),
