@@ -1,5 +1,5 @@
 # Two set-up commands, both safe on a fresh clone:
-#   make demo   -> creates .venv, installs posicast, writes report/index.html
+#   make demo   -> creates .venv, installs posicast (and posicast_reports), writes report/index.html
 #   make test   -> creates .venv if needed, runs the whole suite
 #   make bench  -> also installs the bench extra (comparators), runs benchmarks/
 PYTHON ?= python3
@@ -19,7 +19,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	MPLBACKEND=Agg $(PY) -m posicast.demo --out report
+	MPLBACKEND=Agg $(PY) -m posicast_reports.demo --out report
 
 test: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m pytest

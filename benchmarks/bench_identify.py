@@ -27,7 +27,7 @@ import numpy as np
 from scipy import signal
 
 import posicast
-from posicast.identification import synthetic
+from posicast.testing import synthetic
 
 TRUE = posicast.Mode.from_hz(28.0, 0.05)
 

@@ -25,8 +25,8 @@ import sys
 import time
 
 from _harness import machine_info, md_table, print_machine_info, timed
-from posicast.tune import sample_check
-from posicast.tune.seed001 import table1
+from posicast.testing import sample_check
+from posicast_reports.seed001 import table1
 
 
 def main() -> int:

@@ -126,12 +126,7 @@ def _modules():
         yield info.name
 
 
-# Shadowed today, removed by the redesign branches being merged (strict: an xfail that passes fails).
-_SHADOWED_TODAY = {"posicast.identification.excitation", "posicast.identification.synthetic"}
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="being moved"))
-                                  if n in _SHADOWED_TODAY else n for n in _modules()])
+@pytest.mark.parametrize("name", list(_modules()))
 def test_no_function_hides_a_module(name):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)

@@ -20,7 +20,7 @@ from posicast.firmware.klipper import klipper_recommendation
 from posicast.identification import load_csv
 from posicast.identification.calibration import identify_resonances
 from posicast.identification.resonance import resonance_data
-from posicast.identification.synthetic import klipper_dataset, klipper_resonances
+from posicast.testing.synthetic_data import klipper_dataset, klipper_resonances
 
 REAL = Path(__file__).parent / "data" / "real"
 FILES = sorted(p.name for p in REAL.glob("*.csv"))

@@ -422,8 +422,8 @@ def TUNED():
 
 @functools.lru_cache(maxsize=None)
 def SYNTH():
-    ident = importlib.import_module("posicast.identification")
-    return ident.synthetic(posicast.Mode(2 * math.pi * 5.0, 0.05), "random_binary", fs=200.0, n=400, seed=1,
+    testing = importlib.import_module("posicast.testing")
+    return testing.synthetic(posicast.Mode(2 * math.pi * 5.0, 0.05), "random_binary", fs=200.0, n=400, seed=1,
                            noise=0.001)
 
 
@@ -499,8 +499,8 @@ def entry_table() -> list[Entry]:
     simulate = importlib.import_module("posicast.simulation")
     cases = importlib.import_module("posicast.cases")
     export = importlib.import_module("posicast.io.export")
-    io = importlib.import_module("posicast.io")
     firmware = importlib.import_module("posicast.firmware")
+    testing = importlib.import_module("posicast.testing")
     E = Entry
     csv_path = lambda: str(DATA_DIR() / "data.csv")  # noqa: E731
     mode = lambda: pc.Mode(10.0, 0.03)  # noqa: E731
@@ -708,7 +708,7 @@ def entry_table() -> list[Entry]:
         E("pid_family", lambda **k: tune.pid_family(**k), lambda: {"fixed": {"kd": 0.5}, "maximize": "ki",
                                                                     "derivative_filter": 0.01},
           {"fixed": "object", "maximize": "str", "derivative_filter": "real"}),
-        E("sample_check", lambda **k: tune.sample_check(**k), lambda: {"result": TUNED(), "n": 20, "seed": 0,
+        E("sample_check", lambda **k: testing.sample_check(**k), lambda: {"result": TUNED(), "n": 20, "seed": 0,
                                                                        "margin": 0.3, "n_uniform": 2000},
           {"result": "object", "n": "int", "seed": "int", "margin": "real", "n_uniform": "int"}, timeout=6.0,
           pool_limit=12),
@@ -730,14 +730,14 @@ def entry_table() -> list[Entry]:
           nan_filter=allow_nan(".fit_percent", ".whiteness_p", ".fs"), timeout=6.0, pool_limit=12),
         E("whiteness", lambda **k: ident.whiteness(**k), lambda: {"e": np.sin(np.arange(100.0)), "lags": 10},
           {"e": "array", "lags": "int"}),
-        E("synthetic", lambda **k: ident.synthetic(**k), lambda: {"modes": mode(), "input": "step", "n": 200},
+        E("synthetic", lambda **k: testing.synthetic(**k), lambda: {"modes": mode(), "input": "step", "n": 200},
           {"modes": "mode", "input": "str", "fs": "real", "n": "int", "noise": "real", "bits": "int",
            "density": "real", "seed": "int", "delay": "int", "period": "real"}),
-        E("identify.simulate", lambda **k: ident.simulate(**k), lambda: {"modes": mode(), "u": np.ones(100), "fs": 200.0},
+        E("simulate_modes", lambda **k: testing.simulate_modes(**k), lambda: {"modes": mode(), "u": np.ones(100), "fs": 200.0},
           {"modes": "mode", "u": "array", "fs": "real", "output": "str", "gains": "array"}),
-        E("excitation", lambda **k: ident.excitation(**k), lambda: {"kind": "chirp", "n": 100, "fs": 200.0},
+        E("excitation", lambda **k: testing.excitation(**k), lambda: {"kind": "chirp", "n": 100, "fs": 200.0},
           {"kind": "str", "n": "int", "fs": "real", "seed": "int", "delay": "int", "freq": "real", "period": "real"}),
-        E("klipper_log", lambda **k: ident.klipper_log(**k),
+        E("klipper_log", lambda **k: testing.klipper_log(**k),
           lambda: {"path": str(DATA_DIR() / "out" / "k.csv"), "modes": pc.Mode(2 * math.pi * 40.0, 0.05),
                    "fs": 800.0, "min_freq": 20.0, "max_freq": 60.0, "hz_per_sec": 40.0},
           {"path": "path_out", "modes": "mode", "fs": "real", "min_freq": "real", "max_freq": "real",
@@ -777,17 +777,8 @@ def entry_table() -> list[Entry]:
         E("klipper_smoothing", lambda **k: ident.klipper_smoothing(**k), lambda: {"shaper": ZV(), "accel": 5000.0,
                                                                                    "scv": 5.0},
           {"shaper": "object", "accel": "real", "scv": "real"}),
-        # ---------------------------------------------------------------- io, cases
-        E("Report", lambda **k: io.Report(**k), lambda: {"title": "t", "out_dir": str(DATA_DIR() / "report")},
-          {"title": "str", "out_dir": "path_dir"}, writes=True),
-        E("Report.figure", lambda **k: io.Report("t", DATA_DIR() / "report").figure(**k),
-          lambda: {"fig": plt.figure(), "name": "f", "caption": "c"}, {"fig": "object", "name": "str",
-                                                                        "caption": "str"}, writes=True),
-        E("Report.table", lambda **k: io.Report("t", DATA_DIR() / "report").table(**k),
-          lambda: {"headers": ["a"], "rows": [[1.0]], "digits": 4}, {"headers": "object", "rows": "object",
-                                                                    "digits": "int"}),
-        E("Report.section", lambda **k: io.Report("t", DATA_DIR() / "report").section(**k),
-          lambda: {"title": "s", "text": "x"}, {"title": "str", "text": "str"}),
+        # ---------------------------------------------------------------- cases
+        # (the report writer is posicast_reports.html.Report now, outside posicast: not a posicast entry)
         E("modes_of", lambda **k: cases.modes_of(**k), lambda: {"system": LOAD()}, {"system": "system"}),
         E("two_mass_plant", lambda **k: cases.two_mass_plant(**k), lambda: {},
           {"c1": "real", "c2": "real", "k2": "real", "m1": "real", "m2": "real"}),
@@ -809,6 +800,7 @@ NOT_CALLED = {
     "ZERO_VIBRATION_KINDS": "data",
     "METHODS": "data",
     "INPUTS": "data",
+    "EXCITATIONS": "data",
     "ARCHITECTURES": "data",
     "Ring": "data type: Loop.ring (built by the architectures; its checks tested in tests/test_loops.py)",
     "Block": "data type: the blocks of Loop.ring",
@@ -857,7 +849,7 @@ NOT_CALLED = {
     "Dataset": "result of load_csv: Dataset.column driven",
     "DiscreteShaper": "result of discretize: __call__ and at_s driven",
 }
-ALIASES = {"simulate": ("simulate", "identify.simulate")}
+ALIASES: dict[str, tuple[str, ...]] = {}
 
 
 def public_names() -> dict[str, set[str]]:
@@ -878,8 +870,6 @@ ENTRY_LABELS = {e.label for e in ENTRIES}
 def _entry_module(entry: Entry) -> str:
     """The module defining an entry's callable (``posicast.tune.design`` for ``tune_pd``)."""
     head = entry.label.split(".")[0].split("[")[0]
-    if entry.label.startswith("identify."):
-        return "posicast.identification.synthetic"
     for mn in ("posicast",) + tuple(f"posicast.{s}" for s in SUBPACKAGES) + EXTRA_MODULES:
         m = importlib.import_module(mn)
         if head in getattr(m, "__all__", ()) and hasattr(m, head):

@@ -10,10 +10,11 @@ import pytest
 import posicast
 from posicast import Mode, design
 from posicast.cli import main
-from posicast.identification import klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
+from posicast.identification import klipper_smoothing, load_csv, whiteness
 from posicast.identification.estimators import _radius_from_bandwidth, resonator_bandwidth
-from posicast.identification.report import SEED_MODE, trial_stats
-from posicast.identification.synthetic import simulate
+from posicast.testing import klipper_log, synthetic
+from posicast.testing import simulate_modes as simulate
+from posicast_reports.identification_report import SEED_MODE, trial_stats
 
 # ----------------------------------------------------------------------------- acceptance 1-2
 

@@ -18,8 +18,9 @@ from scipy.optimize import brentq
 
 import posicast
 from posicast import cases, delay, tune_pd, tune_pi, tune_pid
-from posicast.tune import Constraint, region_plot, regions_plot, sample_check, tuning_nyquist_plot
-from posicast.tune.seed001 import PAPER_DELAY, table1
+from posicast.testing import sample_check
+from posicast.tune import Constraint, region_plot, regions_plot, tuning_nyquist_plot
+from posicast_reports.seed001 import PAPER_DELAY, table1
 
 CRANE = cases.ALL["gantry_crane"]
 

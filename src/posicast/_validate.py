@@ -144,24 +144,6 @@ def optional_real(value: Any, name: str) -> float | None:
     return None if value is None else finite_real(value, name)
 
 
-def system(value: Any, name: str) -> Any:
-    """A plant, controller or weight as a posicast TransferFunction; every error names ``name``.
-
-    Accepts what :func:`posicast.as_transfer` accepts.  Coefficients must be finite; a
-    TypeError/ValueError from the conversion is re-raised with ``name`` in front.
-    """
-    from .core.transfer import as_transfer
-
-    if value is None:
-        raise TypeError(f"{name} must be a system (TransferFunction, (num, den), number, scipy/python-control "
-                        f"system), got None")
-    try:
-        return as_transfer(value, name)
-    except (TypeError, ValueError) as exc:
-        msg = str(exc)
-        raise type(exc)(msg if msg.startswith(name) else f"{name}: {msg}") from None
-
-
 def sequence(value: Any, name: str, *, min_len: int = 0) -> list[Any]:
     """A list/tuple (any non-string iterable but a mapping) as a list; TypeError naming ``name``."""
     if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__iter__"):
@@ -299,3 +281,20 @@ def instance_of(value: Any, cls: type | tuple[type, ...], name: str, what: str) 
     if not isinstance(value, cls):
         raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
     return value
+
+
+# --- layers
+
+
+def nonnegative(value: Any, name: str, unit: str = "") -> float:
+    """A finite real ``>= 0``; ``unit`` (e.g. ``' [s]'``) follows the bound in the message.
+
+    >>> nonnegative(0.0, "delay")
+    0.0
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Real, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    x = float(value)
+    if not (math.isfinite(x) and x >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0{unit}, got {x:g}")
+    return x

@@ -17,6 +17,10 @@ refused, as is a directory or a missing parent directory.  Every argument and
 output path is checked before any computation, the file is written only after
 everything else succeeded, atomically (a temporary file in the same directory,
 renamed), and an error leaves no file behind.
+
+The command line is posicast's top layer and imports what it runs at module level.
+matplotlib alone is loaded lazily, through :func:`_pyplot`, the one place here that
+imports it: only the subcommands that draw pay for it.
 """
 
 from __future__ import annotations
@@ -24,10 +28,47 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
-from typing import Any, Sequence
+import tempfile
+import time
+import traceback
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, Callable, Sequence
+
+from . import _validate as v
+from .analysis import insensitivity, sensitivity_plot
+from .cases import ALL as CASES
+from .core.transfer import TransferFunction, as_transfer, delay
+from .identification import NoModeFound, calibrate, load_csv
+from .identification.calibration import identify_resonances
+from .identification.estimators import identify
+from .identification.plots import calibration_plot
+from .identification.resonance import resonance_data
+from .identification.significance import MAX_MODES
+from .modes import Mode
+from .shapers.base import Shaper
+from .shapers import registry  # registry.design at call time: the suite patches it to test status 70
+from .spectra.rootfinder import RootFindingError
+from .tune import TuningResult, tune_pd, tune_pi
+from .tune.constraints import sensitivity_constraint
+from .tune.family import pd_family
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["main"]
+
+
+def _pyplot() -> ModuleType:
+    """``matplotlib.pyplot`` on the file-only Agg backend, imported on first use (the CLI's one matplotlib import)."""
+    import matplotlib  # lazy: about half a second that only the drawing subcommands need
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 class _OneLineError(Exception):
@@ -139,19 +180,10 @@ def _coeffs(text: str, name: str) -> list[float]:
     return vals
 
 
-def _tune_cmd(args: argparse.Namespace) -> int:
-    from . import _validate as v
-    from .core.transfer import delay
-    from .modes import Mode
-    from .shapers.registry import design
-    from .tune import tune_pd, tune_pi
-    from .tune.constraints import sensitivity_constraint
-
-    # every option first, before any design work
+def _check_tune_options(args: argparse.Namespace) -> None:
+    """Every ``tune`` option that needs no design work, before any design work."""
     sensitivity_constraint(args.ms)  # ms range (ValueError naming ms)
     if args.derivative_filter is not None:
-        from .tune.family import pd_family
-
         try:
             pd_family(args.derivative_filter)  # 0 or a time constant in the tuner's range
         except ValueError as exc:
@@ -166,65 +198,80 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         raise ValueError("--ki-range does not apply to a pd controller")
     if args.controller == "pi" and (args.kd_range is not None or args.derivative_filter is not None):
         raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
-    if not (math.isfinite(args.delay) and args.delay >= 0):
-        raise ValueError(f"--delay must be a finite number >= 0 [s], got {args.delay:g}")
+    v.nonnegative(args.delay, "--delay", " [s]")
     if (args.omega is None) != (args.zeta is None):
         raise ValueError("--omega and --zeta go together")
+
+
+def _tune_plant(args: argparse.Namespace) -> tuple[TransferFunction, TransferFunction | None, Mode | None]:
+    """``(G, F, mode)`` from ``--case`` or ``--num/--den`` (with ``--delay``); ``--omega/--zeta`` override the mode."""
     F = None
     mode = None
     if args.case is not None:
-        from .cases import ALL
-
-        if args.case not in ALL:
-            raise ValueError(f"--case must be one of {', '.join(ALL)}; got {args.case!r}")
+        v.choice(args.case, "--case", CASES)
         if args.den is not None:
             raise ValueError("--den goes with --num, not with --case")
-        case = ALL[args.case]
+        case = CASES[args.case]
         G, F, mode = case.G, case.F, case.mode
     else:
         if args.den is None:
             raise ValueError("--den is required with --num")
-        G = v.system((_coeffs(args.num, "--num"), _coeffs(args.den, "--den")), "the plant --num/--den")
+        G = as_transfer((_coeffs(args.num, "--num"), _coeffs(args.den, "--den")), "the plant --num/--den")
     if args.delay != 0.0:
         G = G * delay(args.delay)
     if args.omega is not None:
         mode = Mode(args.omega, args.zeta)
-    S = None
-    if args.shaper is not None:
-        if mode is None:
-            raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
-        S = design(args.shaper.lower(), mode)
-    common = {"F": F}
-    if args.controller == "pd":
-        r = tune_pd(G, S, args.structure, ms=args.ms, derivative_filter=args.derivative_filter,
-                    kp_range=args.kp_range, kd_range=args.kd_range, **common)
-    else:
-        r = tune_pi(G, S, args.structure, ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, **common)
-    figures = []
-    if (args.plot or args.nyquist) and not r.empty:
-        import matplotlib
+    return G, F, mode
 
-        matplotlib.use("Agg")
+
+def _tune_figures(args: argparse.Namespace, r: TuningResult) -> list[tuple[Figure, str, str]]:
+    """The requested figures of a tuning result as ``(figure, path, option)``, not yet written."""
+    figures: list[tuple[Figure, str, str]] = []
+    if (args.plot or args.nyquist) and not r.empty:
+        _pyplot()  # the Agg backend before the tuner draws
         if args.plot:
             figures.append((r.plot()[0], args.plot, "--plot"))
         if args.nyquist and r.loop is not None:
             figures.append((r.nyquist_plot()[0], args.nyquist, "--nyquist"))
+    return figures
+
+
+def _json_number(x: Any) -> float | None:
+    """JSON has no NaN or inf: null."""
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+def _tune_json(args: argparse.Namespace, r: TuningResult) -> dict[str, Any]:
+    ext = r.region.extent()
+    num = _json_number
+    return {
+        "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
+        "empty": r.empty, "unbounded": r.unbounded,
+        "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
+        "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
+        "region": None if ext is None else {r.family.x: [num(ext[0]), num(ext[1])],
+                                            r.family.y: [num(ext[2]), num(ext[3])]},
+    }
+
+
+def _tune_cmd(args: argparse.Namespace) -> int:
+    _check_tune_options(args)  # every option first, before any design work
+    G, F, mode = _tune_plant(args)
+    S = None
+    if args.shaper is not None:
+        if mode is None:
+            raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
+        S = registry.design(args.shaper.lower(), mode)
+    if args.controller == "pd":
+        r = tune_pd(G, S, args.structure, ms=args.ms, derivative_filter=args.derivative_filter,
+                    kp_range=args.kp_range, kd_range=args.kd_range, F=F)
+    else:
+        r = tune_pi(G, S, args.structure, ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, F=F)
+    figures = _tune_figures(args, r)
     for fig, out, opt in figures:  # everything computed: only now write
         _save_atomic(fig, out, opt)
     if args.json:
-        ext = r.region.extent()
-
-        def num(v: Any) -> Any:  # JSON has no NaN or inf: null
-            return float(v) if v is not None and math.isfinite(v) else None
-
-        print(json.dumps({
-            "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
-            "empty": r.empty, "unbounded": r.unbounded,
-            "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
-            "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
-            "region": None if ext is None else {r.family.x: [num(ext[0]), num(ext[1])],
-                                                r.family.y: [num(ext[2]), num(ext[3])]},
-        }, indent=2))
+        print(json.dumps(_tune_json(args, r), indent=2))
     else:
         print(r.summary())
         for _, out, _opt in figures:
@@ -232,8 +279,7 @@ def _tune_cmd(args: argparse.Namespace) -> int:
     return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
 
 
-def _n_modes(text: str) -> Any:
-    from .identification.significance import MAX_MODES
+def _n_modes(text: str) -> int | str:
     if text == "auto":
         return "auto"
     try:
@@ -245,10 +291,8 @@ def _n_modes(text: str) -> Any:
     return n
 
 
-def _progress(quiet: bool) -> Any:
+def _progress(quiet: bool) -> Callable[[str], None]:
     """Progress lines on stderr, once the work has taken more than a second (quick runs stay silent)."""
-    import time
-
     start = time.monotonic()
 
     def say(msg: str) -> None:
@@ -259,7 +303,7 @@ def _progress(quiet: bool) -> Any:
     return say
 
 
-def _at_labels(text: str | None, n: int) -> Any:
+def _at_labels(text: str | None, n: int) -> list[dict[str, float]] | None:
     if text is None:
         return None
     name, sep, values = text.partition("=")
@@ -275,14 +319,9 @@ def _at_labels(text: str | None, n: int) -> Any:
 
 
 def _identify_cmd(args: argparse.Namespace) -> int:
-    from .identification import NoModeFound, calibrate, load_csv
-    from .identification.calibration import identify_resonances
-    from .identification.estimators import identify
-    from .identification.resonance import resonance_data
-
     try:
         if args.command == "calibrate":
-            return _calibrate_cmd(args, calibrate)
+            return _calibrate_cmd(args)
         nm = _n_modes(args.modes)  # arguments before the file is read
         ds = load_csv(args.file)
         if args.input is not None:
@@ -315,14 +354,10 @@ def _identify_cmd(args: argparse.Namespace) -> int:
     return 0
 
 
-def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
-    from . import _validate as v
-
+def _calibrate_cmd(args: argparse.Namespace) -> int:
     if args.vtol is not None:
         v.in_open_interval(args.vtol, "--vtol", 0.0, 1.0)
-    margin = v.real(args.margin, "--margin")
-    if not 0.0 <= margin < 0.5:
-        raise ValueError(f"--margin must be in [0, 0.5), got {margin:g}")
+    margin = v.real_in_range(args.margin, "--margin", 0.0, 0.5, hi_open=True)
     if args.max_smoothing is not None:
         v.positive(args.max_smoothing, "--max-smoothing")
     firmware = [f.strip().lower() for f in args.firmware.split(",") if f.strip()]
@@ -332,11 +367,7 @@ def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
                     input=args.input,
                     output=args.output, n_modes=_n_modes(args.modes), progress=_progress(args.quiet))
     if args.plot:  # everything computed: only now write
-        import matplotlib
-
-        matplotlib.use("Agg")
-        from .identification.plots import calibration_plot
-
+        _pyplot()  # the Agg backend before the figure is drawn
         _save_atomic(calibration_plot(cal), args.plot)
     if args.json:
         print(json.dumps(cal.to_dict(), indent=2))
@@ -347,26 +378,19 @@ def _calibrate_cmd(args: argparse.Namespace, calibrate: Any) -> int:
     return 0
 
 
-def _output_path(value: Any, option: str) -> Any:
+def _output_path(value: Any, option: str) -> Path:
     """Check an output figure path before any work (see the module docstring); returns a Path."""
-    from ._validate import path_for_output
-
-    return path_for_output(value, option)
+    return v.path_for_output(value, option)
 
 
 # Output-path options checked by _run before any subcommand starts work.
 _OUTPUT_OPTIONS = ("out", "plot", "nyquist")
 
 
-def _save_atomic(fig: Any, out: Any, option: str = "--plot") -> None:
+def _save_atomic(fig: Figure, out: str, option: str = "--plot") -> None:
     """Write ``fig`` at exactly ``out``, atomically: a hidden temporary file in the same directory,
     renamed onto ``out`` once complete.  On any failure nothing is left behind and the error
     (a one-line ValueError) names ``option`` and the user's path, never the temporary file."""
-    import os
-    import tempfile
-
-    import matplotlib.pyplot as plt
-
     try:
         target = _output_path(out, option)
         fmt = target.suffix.lower()[1:]
@@ -387,13 +411,11 @@ def _save_atomic(fig: Any, out: Any, option: str = "--plot") -> None:
             if tmp is not None and os.path.exists(tmp):
                 os.unlink(tmp)
     finally:
-        plt.close(fig)
+        _pyplot().close(fig)
 
 
 def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
-    from .shapers.registry import KINDS
-
-    accepted = KINDS[kind].params if kind in KINDS else {}
+    accepted = registry.KINDS[kind].params if kind in registry.KINDS else {}
     out = {}
     for name in ("vtol", "k", "n", "m", "T", "method"):
         val = getattr(args, name)
@@ -405,15 +427,13 @@ def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
     return out
 
 
-def _mode(args: argparse.Namespace) -> Any:
-    from .modes import Mode
-
+def _mode(args: argparse.Namespace) -> Mode:
     if args.omega is not None:
         return Mode(args.omega, args.zeta)
     return Mode.from_hz(args.freq_hz, args.zeta)
 
 
-def _print_shaper(S: Any) -> None:
+def _print_shaper(S: Shaper) -> None:
     m = S.modes[0]
     print(f"{S.name} shaper for omega = {m.omega:.6g} rad/s ({m.freq_hz:.6g} Hz), zeta = {m.zeta:.6g}")
     if S.params:
@@ -437,37 +457,29 @@ def _run(argv: Sequence[str] | None) -> int:
         val = getattr(args, opt, None)
         if val is not None:
             _output_path(val, f"--{opt}")
-    from .shapers.registry import KINDS, design
-
     if args.command in ("identify", "calibrate"):
         return _identify_cmd(args)
     if args.command == "tune":
         return _tune_cmd(args)
     if args.command == "kinds":
-        for name, spec in KINDS.items():
+        for name, spec in registry.KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
             print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
         return 0
     if args.command == "sensitivity":  # the tolerance before any design work
-        from ._validate import real_in_range
-
-        real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
+        v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
     mode = _mode(args)
     if args.command == "design":
         kind = args.kind.lower()
-        S = design(kind, mode, **_params(args, kind))
+        S = registry.design(kind, mode, **_params(args, kind))
         if args.json:
             print(json.dumps(S.to_dict(), indent=2))
         else:
             _print_shaper(S)
         return 0
     # sensitivity: design, analyse, draw; write last
-    import matplotlib
-
-    matplotlib.use("Agg")
-    from .analysis import insensitivity, sensitivity_plot
-
-    shapers = [design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
+    _pyplot()  # the Agg backend before sensitivity_plot draws
+    shapers = [registry.design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
     ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
     lines = []
     for S in shapers:
@@ -487,9 +499,6 @@ _EX_SOFTWARE = 70  # sysexits.h: an internal software error
 
 def _origin(exc: BaseException) -> str:
     """``file:line`` (inside posicast when possible) where ``exc`` was raised."""
-    import os
-    import traceback
-
     frames = traceback.extract_tb(exc.__traceback__)
     root = os.path.dirname(os.path.abspath(__file__))
     for fr in reversed(frames):
@@ -507,10 +516,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     (one line on stderr), 70 an internal error (a bug; one line on stderr, the
     traceback with ``POSICAST_TRACEBACK=1``).
     """
-    import os
-
-    from .spectra.rootfinder import RootFindingError
-
     try:
         return _run(argv)
     except (_OneLineError, ValueError, TypeError, OSError, RootFindingError) as exc:

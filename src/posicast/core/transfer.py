@@ -292,7 +292,7 @@ class TransferFunction(SystemVerbs):
         """Series connection ``self * others[0] * ...``."""
         out = self
         for i, o in enumerate(others):
-            out = out * v.system(o, f"others[{i}]")
+            out = out * as_transfer(o, f"others[{i}]")
         return out
 
     def __add__(self, other: Any) -> TransferFunction:
@@ -309,7 +309,7 @@ class TransferFunction(SystemVerbs):
         """Parallel connection ``self + others[0] + ...``."""
         out = self
         for i, o in enumerate(others):
-            out = out + v.system(o, f"others[{i}]")
+            out = out + as_transfer(o, f"others[{i}]")
         return out
 
     def __neg__(self) -> TransferFunction:
@@ -355,7 +355,7 @@ class TransferFunction(SystemVerbs):
             raise TypeError(f"sign must be -1 or +1, got {type(sign).__name__}")
         if sign not in (-1, 1):
             raise ValueError(f"sign must be -1 or +1, got {sign!r}")
-        k = v.system(other, "other")
+        k = as_transfer(other, "other")
         num = self.num * k.den
         den = self.den * k.den - (self.num * k.num).scaled(float(sign))
         if den.is_zero:
@@ -425,6 +425,18 @@ def as_transfer(obj: Any, name: str = "system") -> TransferFunction:
         raise TypeError(f"name must be a string (the argument's name in messages), got {type(name).__name__}")
     if isinstance(obj, TransferFunction):
         return obj
+    if obj is None:
+        raise TypeError(f"{name} must be a system (TransferFunction, (num, den), number, scipy/python-control "
+                        f"system), got None")
+    try:
+        return _converted(obj, name)
+    except (TypeError, ValueError) as exc:  # every message names the argument
+        msg = str(exc)
+        raise type(exc)(msg if msg.startswith(name) else f"{name}: {msg}") from None
+
+
+def _converted(obj: Any, name: str) -> TransferFunction:
+    """:func:`as_transfer` for anything but a TransferFunction or None."""
     tf = getattr(obj, "transfer", None)
     if isinstance(tf, TransferFunction):
         return tf

@@ -13,8 +13,8 @@ import re
 
 import numpy as np
 
-from posicast.shapers.base import Shaper
-from posicast.simulation.streaming import DiscreteShaper, discretize
+from ..shapers.base import Shaper
+from ..simulation.streaming import DiscreteShaper, discretize
 
 __all__ = ["export_shaper", "EXPORT_FORMATS"]
 

@@ -62,18 +62,6 @@ def _product(factors: Sequence[QuasiPolynomial | None]) -> QuasiPolynomial:
     return out
 
 
-def _checked_block(obj: Any, name: str) -> TransferFunction:
-    """``as_transfer`` with every error message naming the argument."""
-    try:
-        return as_transfer(obj, name)
-    except TypeError as exc:
-        msg = str(exc)
-        raise TypeError(msg if msg.startswith(name) else f"{name}: {msg}") from exc
-    except ValueError as exc:
-        msg = str(exc)
-        raise ValueError(msg if msg.startswith(name) else f"{name}: {msg}") from exc
-
-
 # ---------------------------------------------------------------------- the loop
 class Loop(SystemVerbs):
     """A feedback loop with a signal shaper, with every channel as an exact transfer function.
@@ -145,20 +133,17 @@ class Loop(SystemVerbs):
     S: TransferFunction | None
 
     def __init__(self, architecture: str, *, G: Any, C: Any, F: Any = None, S: Any = None) -> None:
-        if not isinstance(architecture, str):
-            raise TypeError(f"architecture must be a string, got {type(architecture).__name__}")
-        if architecture not in ARCHITECTURES:
-            raise ValueError(f"architecture must be one of {ARCHITECTURES}, got {architecture!r}")
+        v.choice(architecture, "architecture", ARCHITECTURES)
         if G is None:
             raise TypeError("G must be a plant (TransferFunction, (num, den), number, scipy/python-control system), got None")
         if C is None:
             raise TypeError("C must be a controller (TransferFunction, (num, den), number, scipy/python-control system), got None")
         self.architecture = architecture
-        self.G = _checked_block(G, "G")
-        self.C = _checked_block(C, "C")
-        self.F = _checked_block(1.0 if F is None else F, "F")
+        self.G = as_transfer(G, "G")
+        self.C = as_transfer(C, "C")
+        self.F = as_transfer(1.0 if F is None else F, "F")
         self.shaper = S
-        self.S = None if S is None else _checked_block(S, "S")
+        self.S = None if S is None else as_transfer(S, "S")
         if self.S is not None and self.S.num.is_zero:
             raise ValueError("S is identically zero: no signal passes the shaper, so no loop can be formed")
         self.ring: Ring = build_ring(architecture, self._blocks())

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .. import _validate as v
-from ..core.transfer import TransferFunction
+from ..core.transfer import TransferFunction, as_transfer
 
 __all__ = ["Constraint", "NAMED_CHANNELS", "sensitivity_constraint"]
 
@@ -84,7 +84,7 @@ class Constraint:
         gamma = _bound(self.gamma, "gamma")
         object.__setattr__(self, "gamma", gamma)
         if self.weight is not None:
-            W = v.system(self.weight, "weight")
+            W = as_transfer(self.weight, "weight")
             if W.num.is_zero:
                 raise ValueError("weight is identically zero: the constraint would be empty")
             if W.num.degree > W.den.degree:

@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
-from ..core.transfer import TransferFunction
+from ..core.transfer import TransferFunction, as_transfer
 from ..loops import ARCHITECTURES, Loop
 from .constraints import Constraint, sensitivity_constraint
 from . import family as family_mod
@@ -251,7 +251,7 @@ def _check_delays(blocks: list[tuple[str, TransferFunction]]) -> None:
 
 
 def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[TransferFunction, Any]:
-    Gt = v.system(G, "G")
+    Gt = as_transfer(G, "G")
     _check_scale(Gt, "G")
     if Gt.num.is_zero:
         raise ValueError("G is identically zero: nothing to control")
@@ -261,7 +261,7 @@ def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[Transf
             f"denominator degree {Gt.den.degree}"
         )
     if S is not None:
-        St = v.system(S, "S")
+        St = as_transfer(S, "S")
         _check_scale(St, "S")
         if St.num.is_zero:
             raise ValueError("S is identically zero: no signal passes the shaper")
@@ -275,12 +275,12 @@ def _check_blocks(G: Any, S: Any, structure: str, F: Any = None) -> tuple[Transf
         if structure == "feedforward":
             _check_open_loop_stable(St, "S", "in the feedforward structure it filters w outside the loop")
     if F is not None:
-        Ft = v.system(F, "F")
+        Ft = as_transfer(F, "F")
         _check_scale(Ft, "F")
         if Ft.num.degree > Ft.den.degree:
             raise ValueError("F must be proper (the flexible load is a physical system)")
         _check_open_loop_stable(Ft, "F", "it acts on the plant output outside the loop")
-    _check_delays([("G", Gt)] + ([("S", v.system(S, "S"))] if S is not None else []))
+    _check_delays([("G", Gt)] + ([("S", as_transfer(S, "S"))] if S is not None else []))
     return Gt, S
 
 

@@ -29,13 +29,16 @@ import numpy as np
 from scipy import signal
 
 from .. import _validate as v
+from ..identification.data import Dataset
+from ..identification.excitation import ResonanceTest, commanded_acceleration
+from ..identification.spectral import welch_psd
 from ..modes import Mode
-from .excitation import ResonanceTest, commanded_acceleration
 
-__all__ = ["INPUTS", "excitation", "simulate", "sensor", "synthetic", "SyntheticData", "klipper_sweep", "klipper_log",
+__all__ = ["EXCITATIONS", "excitation", "simulate_modes", "sensor", "synthetic", "SyntheticData", "klipper_sweep", "klipper_log",
            "klipper_record", "klipper_dataset", "klipper_resonances"]
 
-INPUTS = ("step", "impulse", "ramp", "harmonic", "random_binary", "chirp")
+#: Kinds of :func:`excitation` (the identification inputs; not posicast.loops.EXCITATIONS, the loop signals).
+EXCITATIONS = ("step", "impulse", "ramp", "harmonic", "random_binary", "chirp")
 G = 9.80665
 
 
@@ -106,8 +109,8 @@ def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: 
     fs = _rate(fs)
     delay = v.integer(delay, "delay", 0)
     seed = _seed(seed)
-    if not isinstance(kind, str) or kind not in INPUTS:
-        raise ValueError(f"kind must be one of {', '.join(INPUTS)}; got {kind!r}")
+    if not isinstance(kind, str) or kind not in EXCITATIONS:
+        raise ValueError(f"kind must be one of {', '.join(EXCITATIONS)}; got {kind!r}")
     if period is not None:
         period = v.positive(period, "period")
         if period * fs > 1e15:
@@ -133,7 +136,7 @@ def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: 
     if kind == "chirp":
         t = k / fs
         return signal.chirp(t, f0=0.5, t1=max(t[-1], 1.0 / fs), f1=0.4 * fs, method="linear")
-    raise ValueError(f"kind must be one of {', '.join(INPUTS)}; got {kind!r}")
+    raise ValueError(f"kind must be one of {', '.join(EXCITATIONS)}; got {kind!r}")
 
 
 def _mode_tf(m: Mode, output: str, gain: float) -> tuple[np.ndarray, np.ndarray]:
@@ -161,13 +164,13 @@ def _zoh(num: Any, den: Any, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return b[: n + 1], a
 
 
-def simulate(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: str = "position",
-             gains: Sequence[float] | None = None) -> np.ndarray:
+def simulate_modes(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: str = "position",
+                   gains: Sequence[float] | None = None) -> np.ndarray:
     """Exact ZOH samples of ``sum_k gains_k F_k(s) u`` (seed 002 eq. 16), from rest.
 
     Examples
     --------
-    >>> y = simulate(Mode.from_hz(28.0, 0.05), np.ones(4000), 400.0)
+    >>> y = simulate_modes(Mode.from_hz(28.0, 0.05), np.ones(4000), 400.0)
     >>> round(float(y[-1]), 6)        # DC gain of eq. 16 is 1
     1.0
     """
@@ -244,7 +247,7 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     modes : Mode or list of Mode
         True modes (seed 002: 28 Hz, zeta 0.05).
     input : str
-        One of :data:`INPUTS`.
+        One of :data:`EXCITATIONS`.
     fs, n : float, int
         Sample rate (seed 002: 400 Hz) and number of samples.
     noise : float
@@ -269,13 +272,13 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     ms = _modes(modes)
     fs = _rate(fs, ms)
     n = _samples(n, "n", 4)
-    if not isinstance(input, str) or input not in INPUTS:
-        raise ValueError(f"input must be one of {', '.join(INPUTS)}; got {input!r}")
+    if not isinstance(input, str) or input not in EXCITATIONS:
+        raise ValueError(f"input must be one of {', '.join(EXCITATIONS)}; got {input!r}")
     if not 0.0 <= v.real(input_noise, "input_noise") < 1.0:
         raise ValueError(f"input_noise must be in [0, 1), got {input_noise:g}")
     rng = np.random.default_rng(_seed(seed))
     u = excitation(input, n, fs, seed=int(rng.integers(2**31)), delay=delay, period=period)
-    y0 = simulate(ms, u, fs, output=output, gains=gains)
+    y0 = simulate_modes(ms, u, fs, output=output, gains=gains)
     y = sensor(y0, fs=fs, noise=noise, density=density, bits=bits, full_scale=full_scale, rng=rng)
     if input_noise > 0:
         u_rec = u + input_noise * float(np.ptp(u) or 1.0) * rng.standard_normal(n)
@@ -368,10 +371,8 @@ def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3
     return path
 
 
-def klipper_dataset(modes: Mode | Sequence[Mode], *, axis: str | None = "x", **options: Any) -> Any:
+def klipper_dataset(modes: Mode | Sequence[Mode], *, axis: str | None = "x", **options: Any) -> Dataset:
     """:func:`klipper_record` as an in-memory :class:`~posicast.identification.Dataset` (no file)."""
-    from .data import Dataset
-
     t, acc = klipper_record(modes, **options)
     fs = float(options.get("fs", 3200.0))
     return Dataset(f"synthetic_raw_data_{axis or 'unknown'}", "klipper_raw", t,
@@ -388,8 +389,6 @@ def klipper_resonances(path: str | Path, modes: Mode | Sequence[Mode], *, fs: fl
     ``max_freq_out`` (default 1.5 x the test's ``max_freq``).  ``modes=[]`` with
     ``test="none"`` writes the spectrum of sensor noise alone.
     """
-    from .spectral import welch_psd
-
     path = v.path_for_output(path, "path", (".csv", ".txt"))
     t, acc = klipper_record(modes, fs=fs, **options)
     test = options.get("test")

@@ -31,13 +31,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
 
-from ..core.transfer import delay as pure_delay
-from ..shapers import design
-from .design import TuningResult, tune_pd
+from scipy.optimize import minimize_scalar
+
+from posicast.cases import ALL, CRANE_TABLE1, Case
+from posicast.core.transfer import delay as pure_delay
+from posicast.loops import Loop
+from posicast.shapers import Shaper, design
+from posicast.tune.design import TuningResult, tune_pd
 
 __all__ = ["PAPER_DELAY", "STRUCTURES", "SHAPERS", "Table1Row", "table1", "paper_point_ms", "fit_paper_delay",
            "crane_shaper"]
@@ -52,13 +56,11 @@ STRUCTURES: tuple[tuple[str, float, str], ...] = (("control_action", 1.2, "d"), 
 SHAPERS: tuple[str | None, ...] = ("dezv", "dtzv", "dczv", "dtazv", "notch", None)
 
 
-def _case() -> Any:
-    from ..cases import ALL
-
+def _case() -> Case:
     return ALL["gantry_crane"]
 
 
-def crane_shaper(kind: str | None) -> Any:
+def crane_shaper(kind: str | None) -> Shaper | None:
     """The shaper of a Table 1 row for the crane's sway mode (None: no shaper)."""
     return None if kind is None else design(kind, _case().mode)
 
@@ -113,8 +115,6 @@ class Table1Row:
 def paper_point_ms(structure: str, kind: str | None, kp: float, kd: float, delay: float = 0.0,
                    omega: np.ndarray | None = None) -> float:
     """Peak sensitivity of the loop with the paper's gains, on eq. 10 as printed (plus ``delay``)."""
-    from ..loops import Loop
-
     case = _case()
     G = case.G if delay == 0 else case.G * pure_delay(delay)
     L = Loop(structure, G=G, C=([kd, kp], [1.0]), F=case.F, S=crane_shaper(kind))
@@ -137,8 +137,6 @@ def table1(delay: float = 0.0, shapers: Sequence[str | None] = SHAPERS, n_lines:
     derivative_filter : float, optional
         Design realisable PDs ``Kp + Kd s / (Tf s + 1)`` instead (for simulation).
     """
-    from ..cases import CRANE_TABLE1
-
     case = _case()
     G = case.G if delay == 0 else case.G * pure_delay(delay)
     rows = []
@@ -166,8 +164,6 @@ def fit_paper_delay(bounds: tuple[float, float] = (0.008, 0.014), n_lines: int =
     Least squares on the logarithms of all 24 gains (12 ``Kp``, 12 ``Kd``), a
     bounded 1-D search.  About a minute.
     """
-    from scipy.optimize import minimize_scalar
-
     res = minimize_scalar(lambda d: _log_error(table1(d, n_lines=n_lines)), bounds=bounds, method="bounded",
                           options={"xatol": 1e-5})
     return float(res.x), float(math.expm1(res.fun))

@@ -10,7 +10,7 @@ largest ``Kp`` as secondary criterion (eq. 8, 16).  This section shows
 1. Table 1 re-computed: posicast's shaper parameters and gains on eq. 10 as
    printed, the paper's values, the peak sensitivity of the paper's own gains on
    that model, and the gains with the loop delay
-   :data:`posicast.tune.seed001.PAPER_DELAY` that reproduces the paper;
+   :data:`posicast_reports.seed001.PAPER_DELAY` that reproduces the paper;
 2. the admissible regions overlaid per structure (Fig. 5 and 6), one region in
    detail, and the Nyquist curves with the Ms circles (Fig. 7);
 3. step and output-disturbance responses of the actuator position ``z`` and the
@@ -27,9 +27,15 @@ import math
 import time
 from typing import Any, Sequence
 
+import matplotlib.pyplot as plt
 import numpy as np
 
-from ..io.report import Report
+from posicast.cases import ALL
+from posicast.loops import Loop, control_action, feedforward
+from posicast.simulation import SimulationResponse, simulate
+from posicast.tune.plots import regions_plot, tuning_nyquist_plot
+
+from .html import Report
 from .seed001 import PAPER_DELAY, Table1Row, crane_shaper, paper_point_ms, table1
 
 __all__ = ["seed001_section", "TF", "SIM_STEP", "SUBSTEPS", "HORIZON", "STEP_AT", "RESIDUAL_AFTER"]
@@ -139,10 +145,13 @@ def _table1(report: Report, rows0: Sequence[Table1Row], rows_d: Sequence[Table1R
 # ---------------------------------------------------------------------- 2. regions and Nyquist
 def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
     """Fig. 5-6 overlays, one region in detail, and Fig. 7 Nyquist plots."""
-    import matplotlib.pyplot as plt
+    _overlay_figure(report, rows0)
+    _detail_figure(report, rows0)
+    _nyquist_figure(report, rows0)
 
-    from .plots import regions_plot, tuning_nyquist_plot
 
+def _overlay_figure(report: Report, rows0: Sequence[Table1Row]) -> None:
+    """Fig. 5-6: the six regions of each structure overlaid."""
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     for ax, (structure, fig_no, ms) in zip(axes, (("inverse_shaper", 5, 2.0), ("control_action", 6, 1.2))):
         sub = _by_structure(rows0, structure)
@@ -164,6 +173,9 @@ def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
                   "seed 001 eq. 16). The shaper in the loop shrinks the region (seed 001 section 4.1): the largest "
                   "K<sub>p</sub> with a shaper is " + " and ".join(ratio) + " of the shaper-free one.")
 
+
+def _detail_figure(report: Report, rows0: Sequence[Table1Row]) -> None:
+    """One region (DeZV, inverse shaper) with its stable set and Ms boundary."""
     detail = next(r for r in rows0 if r.structure == "inverse_shaper" and r.shaper == "dezv")
     fig, ax = detail.result.plot()
     ax.set_title(f"{detail.label}, {_STRUCT[detail.structure]}, Ms = {detail.ms_target:g}", fontsize=10)
@@ -173,6 +185,9 @@ def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
                   "admissible set borders the grey stable set, its outline is that boundary, drawn over it), the "
                   "admissible set (blue) and the chosen point (star).")
 
+
+def _nyquist_figure(report: Report, rows0: Sequence[Table1Row]) -> None:
+    """Fig. 7: Nyquist curves of the chosen controllers with the Ms circles."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 6))
     for ax, (structure, fig_txt) in zip(axes, (("inverse_shaper", " (seed 001 Fig. 7)"), ("control_action", ""))):
         sub = _by_structure(rows0, structure)
@@ -188,7 +203,7 @@ def _region_figures(report: Report, rows0: Sequence[Table1Row]) -> None:
 
 
 # ---------------------------------------------------------------------- 3. responses
-def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
+def _sim_loop(row: Table1Row) -> tuple[Loop, str, dict[str, Any]]:
     """The loop to simulate for a design, how it is simulated, and the extra arguments of ``simulate``.
 
     The in-loop notch is rational, so its loop is simulated exactly through the
@@ -196,9 +211,6 @@ def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
     to z and y): control action with the controller ``C S``; inverse shaper as
     the shaper ``S`` in feedforward with the controller ``C / S``.
     """
-    from ..cases import ALL
-    from ..loops import control_action, feedforward
-
     res = row.result
     if row.shaper is None:
         return res.loop, "continuous (exact)", {}
@@ -212,13 +224,13 @@ def _sim_loop(row: Table1Row) -> tuple[Any, str, dict[str, Any]]:
             "exact, as feedforward S with C/S", {})
 
 
-def _amplitude(resp: Any, after: float) -> float:
+def _amplitude(resp: SimulationResponse, after: float) -> float:
     """Half the peak-to-peak of ``y`` for ``t >= after``: the sway amplitude, whatever the phase at the end."""
     y = resp.y[resp.time >= after]
     return float(np.ptp(y) / 2) if y.size else math.nan
 
 
-def _total_variation(resp: Any) -> float:
+def _total_variation(resp: SimulationResponse) -> float:
     """Total variation of ``z`` (1 for a monotone unit step, larger for a back-and-forth actuator)."""
     return float(np.sum(np.abs(np.diff(resp.z))))
 
@@ -234,9 +246,6 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
     rows0 : sequence of Table1Row
         The ideal designs (same order), to state how close the filtered ones are.
     """
-    import matplotlib.pyplot as plt
-
-    from ..simulation import simulate
 
     dkp = max(abs(f.result.kp / r.result.kp - 1) for f, r in zip(rows_f, rows0))
     dkd = max(abs(f.result.kd / r.result.kd - 1) for f, r in zip(rows_f, rows0))
@@ -244,9 +253,31 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
     t = np.arange(0.0, HORIZON, SIM_STEP)
     step = (t >= STEP_AT).astype(float)
     figs = {k: plt.subplots(2, 2, sharex=True, figsize=(13, 7.5)) for k in ("w", "d")}
+    table, m = _simulate_designs(rows_f, t, step, figs)
+    _finish_response_figures(report, figs, _response_caption("w", dkp, dkd, ok), _response_caption("d", dkp, dkd, ok))
+    after = f"t ≥ {RESIDUAL_AFTER:g} s"
+    report.table(["shaper", "structure", "Kp (Tf)", "Kd (Tf)", "w: overshoot of z [%]", "w: settling of z, 2 % [s]",
+                  "w: total variation of z", f"w: y residual, {after}", f"w: y amplitude, {after}",
+                  f"d: y residual, {after}", f"d: y amplitude, {after}", "simulation"],
+                 table, digits=4)
+    report.paragraph(f"Residual = <code>residual_vibration(after={RESIDUAL_AFTER:g})</code>, the largest |y(t) − "
+                     "y(end)| for t ≥ " f"{RESIDUAL_AFTER:g} s (it depends on the phase of the sway at the end); "
+                     "amplitude = half the peak-to-peak of y in the same window. Total variation of z = Σ|Δz| "
+                     "(1 for a monotone move of the actuator). Settling of z is counted from the step.")
+    _structure_note(report, m)
+
+
+_STRUCTURES = ("inverse_shaper", "control_action")
+#: Per design (structure, label): total variation of z after the set-point step, sway amplitudes after w and d.
+Metrics = dict[tuple[str, str], dict[str, float]]
+
+
+def _simulate_designs(rows_f: Sequence[Table1Row], t: np.ndarray, step: np.ndarray,
+                      figs: dict[str, Any]) -> tuple[list[list[Any]], Metrics]:
+    """Simulate every design after a step in w and in d, draw z and y into ``figs``; the table rows and metrics."""
     table: list[list[Any]] = []
-    m: dict[tuple[str, str], dict[str, float]] = {}
-    structures = ("inverse_shaper", "control_action")
+    m: Metrics = {}
+    structures = _STRUCTURES
     for col, structure in enumerate(structures):
         for row in _by_structure(rows_f, structure):
             loop, how, kw = _sim_loop(row)
@@ -272,6 +303,13 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
                           rw.settling_time("z"), mm["tv"], rw.residual_vibration(after=RESIDUAL_AFTER), mm["amp_w"],
                           rd.residual_vibration(after=RESIDUAL_AFTER), mm["amp_d"], how])
 
+    return table, m
+
+
+def _finish_response_figures(report: Report, figs: dict[str, Any], caption_w: str, caption_d: str) -> None:
+    """Titles, labels and legends of the response figures, then add them to the report."""
+    structures = _STRUCTURES
+    captions = {"w": caption_w, "d": caption_d}
     titles = {"w": ("unit step in the reference w at t = {:g} s", {"inverse_shaper": "Fig. 8 (z), Fig. 9 (y)",
                                                                     "control_action": "Fig. 11 (y)"}),
               "d": ("unit step in the output disturbance d at t = {:g} s", {"inverse_shaper": "Fig. 10 (y)",
@@ -289,17 +327,13 @@ def _responses(report: Report, rows_f: Sequence[Table1Row], rows0: Sequence[Tabl
         axes[0, 0].legend(fontsize=8, ncol=2)
         fig.suptitle(what.format(STEP_AT), fontsize=11)
         fig.tight_layout()
-        report.figure(fig, f"seed001_step_{key}", _response_caption(key, dkp, dkd, ok))
+        report.figure(fig, f"seed001_step_{key}", captions[key])
 
-    after = f"t ≥ {RESIDUAL_AFTER:g} s"
-    report.table(["shaper", "structure", "Kp (Tf)", "Kd (Tf)", "w: overshoot of z [%]", "w: settling of z, 2 % [s]",
-                  "w: total variation of z", f"w: y residual, {after}", f"w: y amplitude, {after}",
-                  f"d: y residual, {after}", f"d: y amplitude, {after}", "simulation"],
-                 table, digits=4)
-    report.paragraph(f"Residual = <code>residual_vibration(after={RESIDUAL_AFTER:g})</code>, the largest |y(t) − "
-                     "y(end)| for t ≥ " f"{RESIDUAL_AFTER:g} s (it depends on the phase of the sway at the end); "
-                     "amplitude = half the peak-to-peak of y in the same window. Total variation of z = Σ|Δz| "
-                     "(1 for a monotone move of the actuator). Settling of z is counted from the step.")
+
+
+def _structure_note(report: Report, m: Metrics) -> None:
+    """The note on which structure suppresses the sway (seed 001 Fig. 10, 12) and on the actuator (Fig. 8)."""
+    structures = _STRUCTURES
 
     def worst(structure: str, key: str, shaped: bool = True) -> float:
         vals = [v[key] for (st, lab), v in m.items() if st == structure and (lab != "S = 1") == shaped]
@@ -353,10 +387,10 @@ def _response_caption(key: str, dkp: float, dkd: float, ok: tuple[bool, float]) 
 
 # ---------------------------------------------------------------------- the section
 def seed001_section(report: Report) -> None:
-    """Add the seed 001 case study (Table 1, Fig. 5-12) to a :class:`posicast.io.report.Report`.
+    """Add the seed 001 case study (Table 1, Fig. 5-12) to a :class:`posicast_reports.html.Report`.
 
     Designs the 12 PDs of Table 1 three times (eq. 10 as printed; with
-    :data:`~posicast.tune.seed001.PAPER_DELAY`; with the derivative filter
+    :data:`~posicast_reports.seed001.PAPER_DELAY`; with the derivative filter
     :data:`TF` for simulation), tabulates them against the paper, and draws the
     regions, Nyquist curves and time responses.  About 20 s.
 

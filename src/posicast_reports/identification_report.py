@@ -7,12 +7,16 @@ import math
 from pathlib import Path
 from typing import Any
 
+import matplotlib.pyplot as plt
 import numpy as np
 
-from ..modes import Mode
-from .estimators import identify
-from .calibration import calibrate
-from .synthetic import klipper_dataset, synthetic
+from posicast.identification.calibration import calibrate
+from posicast.identification.estimators import identify
+from posicast.identification.plots import calibration_plot
+from posicast.modes import Mode
+from posicast.testing.synthetic_data import klipper_dataset, synthetic
+
+from .html import Report
 
 __all__ = ["identification_section", "trial_stats", "SEED_MODE"]
 
@@ -48,10 +52,8 @@ def _pm(st: dict[str, Any], key: str) -> str:
     return "–" if not math.isfinite(b) else f"{100 * b:+.2f} ± {100 * s:.2f}"
 
 
-def identification_section(report: Any, trials: int = 30, acceptance_trials: int = 100) -> None:
-    """Add the identification section (issue #5) to a :class:`posicast.io.report.Report`."""
-    import matplotlib.pyplot as plt
-
+def identification_section(report: Report, trials: int = 30, acceptance_trials: int = 100) -> None:
+    """Add the identification section (issue #5) to a :class:`posicast_reports.html.Report`."""
     report.section("Identification of lightly damped modes (seed 002 sections 3-4)")
     report.paragraph(
         "True system: seed 002 eq. 16, 28 Hz, ζ = 0.05, sampled exactly (zero-order hold) at 400 Hz; 12-bit "
@@ -143,13 +145,12 @@ def identification_section(report: Any, trials: int = 30, acceptance_trials: int
         report.paragraph(f"<b>{html.escape(rec.firmware.name)}{' axis ' + rec.axis if rec.axis else ''}</b><pre>"
                          + html.escape(rec.table() + "\n" + "\n".join(rec.reasoning) + "\n\n"
                                        + "\n".join(rec.config)) + "</pre>")
-    from .plots import calibration_plot
 
     report.figure(calibration_plot(cal), "identify_klipper", "Left: the log's spectrum with the fitted model, the "
                   "excitation's shape and the modes' 95 % intervals. Right: vibration left by each firmware's "
                   "recommended setting (solid) and by a Klipper-style pick on the same types (dashed), over the "
                   "spectrum the firmware scores on (grey).")
-    real = Path(__file__).resolve().parents[3] / "tests" / "data" / "real"
+    real = Path(__file__).resolve().parents[2] / "tests" / "data" / "real"  # src/posicast_reports/ -> repository
     files = sorted(real.glob("*.csv")) if real.is_dir() else []
     if files:
         rows = []

@@ -17,9 +17,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from .. import _validate as v
-from .design import TuningResult
+from ..spectra.rootfinder import RootFindingError
+from ..tune.design import TuningResult
 
 # Work bounds of sample_check: the brute force evaluates n x n_uniform loop frequency responses (about
 # 10 ns each) and one certified spectrum check per candidate point (about 10 ms each).
@@ -88,8 +90,6 @@ def _dense_grid(result: TuningResult, n_uniform: int) -> np.ndarray:
 def brute_force_sensitivity(result: TuningResult, points: np.ndarray, n_uniform: int = 40000,
                             refine_within: float = 0.02) -> np.ndarray:
     """``||S||_inf`` of the family's controller at each ``(kx, ky)`` of ``points`` (direct evaluation)."""
-    from scipy.optimize import minimize_scalar
-
     fam = result.family
     loop0 = result.region._engine.loop_factory(0.0, 0.0)
     P = loop0.plant_gain
@@ -125,8 +125,6 @@ def brute_force_sensitivity(result: TuningResult, points: np.ndarray, n_uniform:
 
 
 def _stable(result: TuningResult, kx: float, ky: float) -> bool | None:
-    from ..spectra.rootfinder import RootFindingError
-
     try:
         return bool(result.region._engine.loop_factory(kx, ky).stability(max_evaluations=2e7, timeout=20.0).stable)
     except (RootFindingError, ValueError):

@@ -14,7 +14,9 @@ import tempfile
 from pathlib import Path
 from typing import Any, Sequence
 
-from .. import _validate as v
+import matplotlib.pyplot as plt
+
+from posicast import _validate as v
 
 __all__ = ["Report"]
 
@@ -97,8 +99,6 @@ class Report:
 
     def figure(self, fig: Any, name: str, caption: str = "") -> None:
         """Write ``fig`` as ``NN_name.png`` next to the page (atomically) and show it with ``caption``."""
-        import matplotlib.pyplot as plt
-
         if not callable(getattr(fig, "savefig", None)):
             raise TypeError(f"fig must be a matplotlib Figure, got {type(fig).__name__}")
         if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.-]{1,80}", name):

@@ -1,6 +1,6 @@
 """``make demo``: design every shaper for the seeds' modes and write ``report/index.html``.
 
-Run as ``python -m posicast.demo --out report``.  Later stages (spectra,
+Run as ``python -m posicast_reports.demo --out report``.  Later stages (spectra,
 simulation, tuning, identification) add their own sections here.
 """
 
@@ -12,13 +12,20 @@ import sys
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
-from .analysis import impulse_plot, insensitivity, residual_vibration, sensitivity_curve, sensitivity_plot
-from .io.report import Report
-from .modes import Mode
-from .shapers import design
-from .shapers.ei import ei_fit_report
+from posicast.analysis import impulse_plot, insensitivity, residual_vibration, sensitivity_curve, sensitivity_plot
+from posicast.loops import control_action, inverse_shaper, spectrum_plot
+from posicast.modes import Mode
+from posicast.shapers import design
+from posicast.shapers.ei import ei_fit_report
+from posicast.simulation import simulate
+from posicast.spectra import roots
+
+from .html import Report
+from .identification_report import identification_section
+from .seed001_report import seed001_section
 
 CRANE = ("seed 001 gantry crane sway mode", Mode(5.49, 0.008))
 LINK = ("seed 000 Quanser flexible-link mode", Mode(8.98, 0.14))
@@ -67,8 +74,6 @@ def _shaper_table(report: Report, mode: Mode) -> None:
 
 
 def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
-    import matplotlib.pyplot as plt
-
     groups = [
         ("ZV and derivative shapers (seed 004 Fig. 8)", ["zv", "zvd", "zvdd", "zvddd"], {}),
         ("EI family, vtol = 5 % (seed 004 Fig. 9)", [("ei", {"vtol": 0.05}), ("ei2", {"vtol": 0.05}),
@@ -140,8 +145,6 @@ def _seed_checks(report: Report) -> None:
 
 
 def _ei_section(report: Report) -> None:
-    import matplotlib.pyplot as plt
-
     report.section("EI shaper: Singhose's damped curve fit against the exact solution")
     data = ei_fit_report(vtol=0.05)
     n = len(data["zeta"])
@@ -170,11 +173,6 @@ SEED000_MODE = Mode(10.0, 0.03)
 
 
 def _spectra_section(report: Report) -> None:
-    import matplotlib.pyplot as plt
-
-    from .loops import control_action, inverse_shaper, spectrum_plot
-    from .spectra import roots
-
     report.section(
         "Seed 000 section V: spectra of the loops with inverse shapers",
         "G = 1/(s²+s), F = s/(s²+0.6s+100), C = (10s+10)/(0.01s+1); ZV and DZV shapers for F's mode "
@@ -257,11 +255,6 @@ def _spectra_section(report: Report) -> None:
 
 
 def _simulation_section(report: Report) -> None:
-    import matplotlib.pyplot as plt
-
-    from .loops import control_action, inverse_shaper
-    from .simulation import simulate
-
     report.section(
         "Seed 000 Fig. 7–8: set-point and disturbance responses of four schemes",
         "Set-point step w at t = 5 s, output disturbance step d = 0.5 at t = 20 s (added to z). "
@@ -326,11 +319,7 @@ def build_report(out: str | Path) -> Path:
     _ei_section(report)
     _spectra_section(report)
     _simulation_section(report)
-    from .tune.report import seed001_section
-
     seed001_section(report)
-    from .identification.report import identification_section
-
     identification_section(report)
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
     return report.write()
