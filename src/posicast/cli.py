@@ -218,7 +218,7 @@ def _tune_cmd(args: argparse.Namespace) -> int:
             return float(v) if v is not None and math.isfinite(v) else None
 
         print(json.dumps({
-            "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
+            "controller": r.family.describe(), "structure": r.architecture, "shaper": args.shaper,
             "empty": r.empty, "unbounded": r.unbounded,
             "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
             "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
