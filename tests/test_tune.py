@@ -321,8 +321,10 @@ def test_bad_input_is_refused_with_a_clear_message():
         Constraint("T", 0.0)
     with pytest.raises(TypeError, match="ms must be a real number"):
         tune_pd(G, ms="2")
-    with pytest.raises(ValueError, match="structure must be one of"):
-        tune_pd(G, structure="cascade")
+    with pytest.raises(ValueError, match="architecture must be one of"):
+        tune_pd(G, architecture="cascade")
+    with pytest.warns(FutureWarning, match="architecture"), pytest.raises(ValueError, match="structure must be one of"):
+        tune_pd(G, structure="cascade")  # the old keyword still works, and warns
     with pytest.raises(TypeError, match="G must be a system"):
         tune_pd(None)
     with pytest.raises(ValueError, match="kp_range must have low < high"):
@@ -340,14 +342,14 @@ def test_bad_input_is_refused_with_a_clear_message():
     with pytest.raises(ValueError, match="derivative_filter must be >= 0"):
         tune_pd(G, derivative_filter=-0.1)
     with pytest.raises(ValueError, match="S must be biproper"):
-        tune_pd(G, S=([1.0], [1.0, 1.0]), structure="inverse_shaper")
+        tune_pd(G, S=([1.0], [1.0, 1.0]), architecture="inverse_shaper")
     with pytest.raises(ValueError, match="fixed must be a mapping"):
         tune_pid(G, fixed={"kp": 1.0, "kd": 1.0})
     with pytest.raises(ValueError, match="maximize must be one of"):
         tune_pid(G, fixed={"kd": 1.0}, maximize="kd")
     # blocks outside the loop that no controller can stabilise
     with pytest.raises(ValueError, match="S is unstable .* feedforward"):
-        tune_pd(G, S=([1.0], [1.0, -1.0]), structure="feedforward")
+        tune_pd(G, S=([1.0], [1.0, -1.0]), architecture="feedforward")
     with pytest.raises(ValueError, match="F is unstable"):
         tune_pd(G, F=([1.0], [1.0, 0.0]))
     with pytest.raises(ValueError, match="F must be proper"):

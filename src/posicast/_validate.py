@@ -298,3 +298,29 @@ def nonnegative(value: Any, name: str, unit: str = "") -> float:
     if not (math.isfinite(x) and x >= 0):
         raise ValueError(f"{name} must be a finite number >= 0{unit}, got {x:g}")
     return x
+
+
+# --- tune
+def pair(value: Any, name: str, what: str = "a (low, high) pair of numbers") -> tuple[Any, Any]:
+    """The two items of a length-2 sequence (not a string); TypeError otherwise, saying ``what`` was expected.
+
+    >>> pair((1.0, 2.0), "kp_range")
+    (1.0, 2.0)
+    """
+    if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+    return value[0], value[1]
+
+
+def index(value: Any, name: str, size: int, what: str = "an index") -> int:
+    """An integer index into ``size`` items (bools refused): TypeError for a non-integer, ValueError
+    outside ``[0, size - 1]``; ``what`` names the kind of index in the message.
+
+    >>> index(2, "i", 5, "a line index")
+    2
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (Integral, np.integer)):
+        raise TypeError(f"{name} must be {what} (int), got {type(value).__name__}")
+    if not 0 <= value < size:
+        raise ValueError(f"{name} must be {what} in [0, {size - 1}], got {value}")
+    return int(value)

@@ -245,7 +245,7 @@ def _tune_json(args: argparse.Namespace, r: TuningResult) -> dict[str, Any]:
     ext = r.region.extent()
     num = _json_number
     return {
-        "controller": r.family.describe(), "structure": r.structure, "shaper": args.shaper,
+        "controller": r.family.describe(), "structure": r.architecture, "shaper": args.shaper,
         "empty": r.empty, "unbounded": r.unbounded,
         "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
         "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,

@@ -73,13 +73,13 @@ class RegionCheck:
 
 
 def _dense_grid(result: TuningResult, n_uniform: int) -> np.ndarray:
-    eng = result.region._engine
+    eng = result.region.problem
     fd = eng.fd
     w = fd.omega[: fd.n_grid]
     ext = result.region.extent() or (0.0, 1.0, 0.0, 1.0)
     X = max(abs(ext[0]), abs(ext[1])) * 1.5
     Y = max(abs(v) for v in ext[2:] if math.isfinite(v)) * 1.5 if any(math.isfinite(v) for v in ext[2:]) else 1.0
-    L = X * np.abs(eng.a[: fd.n_grid]) + Y * np.abs(eng.b[: fd.n_grid]) + np.abs(eng.u[: fd.n_grid] - 1)
+    L = X * np.abs(eng.columns.a[: fd.n_grid]) + Y * np.abs(eng.columns.b[: fd.n_grid]) + np.abs(eng.columns.u[: fd.n_grid] - 1)
     sig = np.flatnonzero(np.isfinite(L) & (L > 1e-3))
     w_max = float(w[sig[-1]]) * 2.0 if sig.size else float(w[-1])
     w_pos = w[w > 0]
@@ -91,7 +91,7 @@ def brute_force_sensitivity(result: TuningResult, points: np.ndarray, n_uniform:
                             refine_within: float = 0.02) -> np.ndarray:
     """``||S||_inf`` of the family's controller at each ``(kx, ky)`` of ``points`` (direct evaluation)."""
     fam = result.family
-    loop0 = result.region._engine.loop_factory(0.0, 0.0)
+    loop0 = result.region.problem.loop_factory(0.0, 0.0)
     P = loop0.plant_gain
     w = _dense_grid(result, n_uniform)
     s = 1j * w
@@ -126,7 +126,7 @@ def brute_force_sensitivity(result: TuningResult, points: np.ndarray, n_uniform:
 
 def _stable(result: TuningResult, kx: float, ky: float) -> bool | None:
     try:
-        return bool(result.region._engine.loop_factory(kx, ky).stability(max_evaluations=2e7, timeout=20.0).stable)
+        return bool(result.region.problem.loop_factory(kx, ky).stability(max_evaluations=2e7, timeout=20.0).stable)
     except (RootFindingError, ValueError):
         return None
 

@@ -7,9 +7,10 @@
 """
 
 from .constraints import NAMED_CHANNELS, Constraint
-from .design import TuningResult, tune, tune_pd, tune_pi, tune_pid
+from .design import tune, tune_pd, tune_pi, tune_pid
 from .family import ControllerFamily, pd_family, pi_family, pid_family
 from .regions import Region
+from .result import TuningResult
 from .plots import region_plot, regions_plot, tuning_nyquist_plot
 
 __all__ = [

@@ -22,17 +22,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction
 from ..loops import Loop, feature_frequencies
+from ..spectra.difference import common_step as _spectra_common_step
 from .constraints import Constraint
 from .family import ControllerFamily
 
-__all__ = ["FrequencyData", "Asymptote"]
+__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -94,9 +95,7 @@ def _poly_tf(num_desc: np.ndarray, den_desc: np.ndarray) -> TransferFunction:
 
 
 def _common_step(delays: np.ndarray) -> float | None:
-    from ..spectra.difference import common_step as cs
-
-    return cs(np.unique(delays))
+    return _spectra_common_step(np.unique(delays))
 
 
 class _Term:
@@ -162,19 +161,29 @@ class FrequencyData:
         one = TransferFunction.constant(1.0)
         tfs = {"u": one + Cs["0"] * Pg, "a": Cs["x"] * Pg, "b": Cs["y"] * Pg}
         asym = {k: Asymptote.of(t) for k, t in tfs.items()}
-        for k in ("a", "b"):
-            if asym[k].m > 0:
-                raise ValueError(
-                    f"the loop gain C P is improper for this controller ({family.describe()}): P = "
-                    f"{'G' if loop0.architecture == 'feedforward' else 'G S' if loop0.architecture == 'control_action' else 'G / S'}"
-                    " needs more poles than zeros (a PD needs relative degree >= 1, a PID with ideal "
-                    "derivative too; or set derivative_filter)"
-                )
-        cons_tfs: list[dict[str, TransferFunction]] = []
-        # (R, through the controller, W) per constraint: values() builds every term from P, R, W and C's parts
-        self._factors: list[tuple[TransferFunction, bool, TransferFunction]] = []
+        _refuse_improper_loop(asym, family, loop0.architecture)
         self._cpolys = tuple((np.trim_zeros(np.asarray(getattr(family, "n" + k), dtype=float), "f"),
                               np.trim_zeros(np.asarray(family.dC, dtype=float), "f")) for k in ("0", "x", "y"))
+        cons_tfs = self._constraint_terms(loop0, Cs)
+        self._terms = {k: _Term(t) for k, t in tfs.items()}
+        self._cterms = [{k: _Term(t) for k, t in d.items()} for d in cons_tfs]
+        self._asym = asym
+        self._casym = [{k: Asymptote.of(t) for k, t in d.items()} for d in cons_tfs]
+        self.r_min = float(min((1.0 / c.gamma for c in self.constraints if c.kind == "S"), default=0.5))
+        self.delta = float(delta)
+        self._initial_grid(Pg, tfs, cons_tfs, list(Cs.values()))
+        self.refine(scale, ceiling=self.delay_ceiling if limit_for_delays else None)
+        self._limit_columns()
+
+    def _constraint_terms(self, loop0: Loop, Cs: dict[str, TransferFunction]) -> list[dict[str, TransferFunction]]:
+        """Each constraint's ``nu, na, nb`` (the channel's numerator parts) and weight ``W``.
+
+        Also records ``(R, through the controller, W)`` per constraint: :meth:`values`
+        builds every term from ``P``, ``R``, ``W`` and ``C``'s parts.
+        """
+        family = self.family
+        cons_tfs: list[dict[str, TransferFunction]] = []
+        self._factors: list[tuple[TransferFunction, bool, TransferFunction]] = []
         for c in self.constraints:
             src, dst = c.channel
             try:
@@ -195,14 +204,13 @@ class FrequencyData:
                     )
             cons_tfs.append(d)
             self._factors.append((R, through, c.weight_tf))
-        self._terms = {k: _Term(t) for k, t in tfs.items()}
-        self._cterms = [{k: _Term(t) for k, t in d.items()} for d in cons_tfs]
-        self._asym = asym
-        self._casym = [{k: Asymptote.of(t) for k, t in d.items()} for d in cons_tfs]
-        self.r_min = float(min((1.0 / c.gamma for c in self.constraints if c.kind == "S"), default=0.5))
-        self.delta = float(delta)
-        # --- grid
-        feats = feature_frequencies([Pg] + [t for d in cons_tfs for t in d.values()] + list(Cs.values()))
+        return cons_tfs
+
+    def _initial_grid(self, Pg: TransferFunction, tfs: dict[str, TransferFunction],
+                      cons_tfs: list[dict[str, TransferFunction]], controller_tfs: list[TransferFunction]) -> None:
+        """A log grid from 1/30 of the lowest to 30 times the highest feature of every block (and 0 when
+        every term is finite there), with its values; sets :attr:`top_feature` and :attr:`delay_ceiling`."""
+        feats = feature_frequencies([Pg] + [t for d in cons_tfs for t in d.values()] + controller_tfs)
         feats = [f for f in feats if 1e-8 < f < 1e9] or [1.0]
         #: the highest feature frequency [rad/s] of the loop's blocks
         self.top_feature = max(feats)
@@ -222,8 +230,6 @@ class FrequencyData:
             grid = np.concatenate([[0.0], grid])
         self.omega = grid
         self._vals = self._evaluate(grid)
-        self.refine(scale, ceiling=self.delay_ceiling if limit_for_delays else None)
-        self._limit_columns()
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -291,7 +297,26 @@ class FrequencyData:
             self._small = (min(X, max(float(abs(small[0])), 1e-300)), min(Y, max(float(abs(small[1])), 1e-300)))
         elif not hasattr(self, "_small"):
             self._small = (X, Y)
-        Xs, Ys = self._small
+        self._grow_upward(X, Y, ceiling)
+        self._grow_downward(*self._small)
+        self._insert_points(X, Y)
+        self.n_grid = self.omega.size
+        if hasattr(self, "_limit"):
+            self._limit_columns()
+
+    def _append(self, new: np.ndarray, at: int | None = None) -> None:
+        """Evaluate the frequencies ``new`` and insert them at column ``at`` (None: at the end)."""
+        nv = self._evaluate(new)
+        if at is None:
+            self.omega = np.concatenate([self.omega, new])
+            self._vals = {k: np.concatenate([self._vals[k], nv[k]]) for k in self._vals}
+        else:
+            self.omega = np.concatenate([self.omega[:at], new, self.omega[at:]])
+            self._vals = {k: np.concatenate([self._vals[k][:at], nv[k], self._vals[k][at:]]) for k in self._vals}
+
+    def _grow_upward(self, X: float, Y: float, ceiling: float | None) -> None:
+        """Extend the grid a decade at a time until the decaying terms of ``L`` times the gains ``X, Y``
+        are below 1e-4 at its end, or it reaches ``ceiling`` (or 1e9) rad/s."""
         for _ in range(12):
             v = self._vals
             lim = {k: self._asym[k] for k in ("a", "b")}
@@ -299,21 +324,20 @@ class FrequencyData:
             if not tail > 1e-4 or self.omega[-1] >= min(1e9, ceiling or math.inf):
                 break
             top = min(10.0, max(1.0 + 1e-9, (ceiling or math.inf) / self.omega[-1]))  # not past the ceiling
-            new = self.omega[-1] * np.geomspace(1.0, top, max(3, int(100 * math.log10(top)) + 1))[1:]
-            nv = self._evaluate(new)
-            self.omega = np.concatenate([self.omega, new])
-            self._vals = {k: np.concatenate([self._vals[k], nv[k]]) for k in self._vals}
-        # downward: until the D-decomposition curve (1 + L = 0) has settled at its low-frequency end
-        # (for small gains the crossover, and the boundaries, move to omega -> 0)
+            self._append(self.omega[-1] * np.geomspace(1.0, top, max(3, int(100 * math.log10(top)) + 1))[1:])
+
+    def _grow_downward(self, Xs: float, Ys: float) -> None:
+        """Extend the grid downward until the D-decomposition curve (1 + L = 0) has settled at its
+        low-frequency end for gains ``Xs, Ys`` (for small gains the crossover, and the boundaries, move
+        to omega -> 0)."""
         for _ in range(12):
             w0 = self.omega[1] if self._has_zero else self.omega[0]
             if w0 <= 1e-12 or not self._curve_moves(0 if not self._has_zero else 1, Xs, Ys):
                 break
-            new = w0 * np.geomspace(1e-1, 1.0, 101)[:-1]
-            nv = self._evaluate(new)
-            cut = 1 if self._has_zero else 0
-            self.omega = np.concatenate([self.omega[:cut], new, self.omega[cut:]])
-            self._vals = {k: np.concatenate([self._vals[k][:cut], nv[k], self._vals[k][cut:]]) for k in self._vals}
+            self._append(w0 * np.geomspace(1e-1, 1.0, 101)[:-1], at=1 if self._has_zero else 0)
+
+    def _insert_points(self, X: float, Y: float) -> None:
+        """Insert midpoints wherever the exact derivative says the grid is too coarse (:meth:`_violations`)."""
         for _ in range(_REFINE_ROUNDS):
             bad = self._violations(X, Y)
             if not np.any(bad) or self.omega.size >= _MAX_POINTS:
@@ -326,9 +350,6 @@ class FrequencyData:
             order = np.argsort(np.concatenate([self.omega, new]), kind="stable")
             self.omega = np.concatenate([self.omega, new])[order]
             self._vals = {k: np.concatenate([self._vals[k], nv[k]])[order] for k in self._vals}
-        self.n_grid = self.omega.size
-        if hasattr(self, "_limit"):
-            self._limit_columns()
 
     def _curve_point(self, vals: dict[str, np.ndarray], i: int) -> tuple[float, float] | None:
         u, a, b = vals["u"][i], vals["a"][i], vals["b"][i]
@@ -409,6 +430,69 @@ class FrequencyData:
     @property
     def n_columns(self) -> int:
         return self.n_grid + self.theta.size
+
+
+# ---------------------------------------------------------------------- columns of one grid
+class ConstraintColumns(NamedTuple):
+    """One constraint ``|W X| < gamma`` on the columns: ``X``'s numerator ``nu + kx na + ky nb`` and
+    ``w2 = |W|^2 / gamma^2``."""
+
+    nu: np.ndarray
+    na: np.ndarray
+    nb: np.ndarray
+    w2: np.ndarray
+
+
+@dataclass(frozen=True)
+class Columns:
+    """The frequency data of one grid as arrays: ``1 + L = u + kx a + ky b`` and each constraint.
+
+    Columns ``0 .. n_grid - 1`` are the finite grid ``omega``; the rest are limit
+    columns (``omega -> infinity``).  A new grid (:meth:`FrequencyData.refine`)
+    needs new columns (:func:`columns_of`).
+
+    Attributes
+    ----------
+    data : FrequencyData
+        The exact frequency response, for refinements between columns.
+    omega : ndarray
+        The finite grid [rad/s].
+    n_grid : int
+    u, a, b : ndarray of complex
+    constraints : tuple of ConstraintColumns
+    """
+
+    data: FrequencyData
+    omega: np.ndarray
+    n_grid: int
+    u: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    constraints: tuple[ConstraintColumns, ...]
+
+    @property
+    def n_constraints(self) -> int:
+        return len(self.constraints)
+
+
+def columns_of(fd: FrequencyData) -> Columns:
+    """The columns of ``fd``'s current grid."""
+    cols = fd.columns()
+    cons = tuple(ConstraintColumns(cols[f"nu{i}"], cols[f"na{i}"], cols[f"nb{i}"], cols[f"w2{i}"])
+                 for i in range(len(fd.constraints)))
+    return Columns(fd, fd.omega, fd.n_grid, cols["u"], cols["a"], cols["b"], cons)
+
+
+def _refuse_improper_loop(asym: dict[str, Asymptote], family: ControllerFamily, architecture: str) -> None:
+    """ValueError when ``C P`` grows without bound (an ideal derivative on a plant of relative degree 0)."""
+    for k in ("a", "b"):
+        if asym[k].m > 0:
+            raise ValueError(
+                f"the loop gain C P is improper for this controller ({family.describe()}): P = "
+                f"{'G' if architecture == 'feedforward' else 'G S' if architecture == 'control_action' else 'G / S'}"
+                " needs more poles than zeros (a PD needs relative degree >= 1, a PID with ideal "
+                "derivative too; or set derivative_filter)"
+            )
 
 
 def _safe_eval(tf: TransferFunction, s: float) -> complex:

@@ -11,8 +11,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import _validate as v
-from .design import TuningResult
+from ..loops import nyquist_plot
 from .regions import Region
+from .result import TuningResult
 
 __all__ = ["region_plot", "regions_plot", "tuning_nyquist_plot"]
 
@@ -165,8 +166,6 @@ def tuning_nyquist_plot(items: TuningResult | Sequence[TuningResult], ax: Any = 
     The circle drawn is the first design's ``Ms`` constraint; an active design's
     curve touches it.
     """
-    from ..loops.plots import nyquist_plot
-
     seq = [items] if isinstance(items, TuningResult) else v.sequence(items, "items", min_len=1)
     for it in seq:
         if not isinstance(it, TuningResult):
@@ -180,6 +179,6 @@ def tuning_nyquist_plot(items: TuningResult | Sequence[TuningResult], ax: Any = 
     v.labels(labels, "labels", len(loops))
     ms = next((c.gamma for c in seq[0].constraints if c.kind == "S" and c.weight is None), None)
     if omega is None:
-        fd = seq[0].region._engine.fd
+        fd = seq[0].region.problem.fd
         omega = fd.omega[fd.omega > 0]
     return nyquist_plot(loops, omega=omega, ms=ms if ms is not None else None, ax=ax, labels=labels)

@@ -1,0 +1,319 @@
+"""D-decomposition boundaries in the gain plane (seed 001 section 3, step 5 of Algorithm 1).
+
+The closed-loop characteristic quasi-polynomial ``dC D_P + (n0 + kx nx + ky ny) N_P``
+has a root on the imaginary axis where the gains cross a boundary:
+
+* complex-root boundary (:class:`ComplexCurve`): ``1 + L(j omega) = 0`` for some
+  ``omega > 0``, i.e. ``Im(U conj b) = 0`` with ``U = u + kx a``, at
+  ``ky = -Re(U / b)``;
+* real-root boundary (:class:`RealBoundary`): the lowest Taylor coefficient at
+  ``s = 0`` that is not identically zero (a distributed shaper's removable root at
+  0 is skipped);
+* infinite-root boundary (:class:`InfiniteBoundary`): where the leading
+  coefficients change the type (degree drop) or, for neutral loops, where the
+  difference operator stops being strongly stable (``sum |d_k| = 1``, the test
+  :func:`posicast.stability` applies).
+
+On a scan line these are the *breaks* (:class:`BreakKind`); between two lines,
+:func:`horizontal_crossing` says whether a horizontal path crosses any of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any, NamedTuple
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..core.quasipoly import QuasiPolynomial
+from .frequency import Columns
+
+__all__ = ["BreakKind", "RealBoundary", "InfiniteBoundary", "ComplexCurve", "ComplexBreaks", "real_boundary",
+           "infinite_boundary", "complex_curve", "complex_breaks", "crossing_frequency", "horizontal_crossing"]
+
+
+class BreakKind(str, Enum):
+    """Which boundary a scan line crosses at a break (stored as its one-letter value)."""
+
+    COMPLEX = "c"  #: a pair of roots crosses the imaginary axis at +-j omega, omega > 0
+    REAL = "r"  #: a real root crosses at s = 0
+    INFINITE = "i"  #: roots come from or go to infinity (degree drop, strong stability lost)
+
+
+# ---------------------------------------------------------------------- s = 0
+@dataclass(frozen=True)
+class RealBoundary:
+    """``t(kx, ky) = T0 + kx Tx + ky Ty``: the Taylor coefficient of the characteristic at s = 0.
+
+    ``coeffs`` is None when it vanishes for every gain (``structural``): every
+    controller of the family then leaves a genuine closed-loop pole at s = 0.
+    """
+
+    coeffs: tuple[float, float, float] | None
+
+    @property
+    def structural(self) -> bool:
+        return self.coeffs is None
+
+    def value(self, x: Any, y: Any) -> Any:
+        T0, Tx, Ty = self.coeffs if self.coeffs is not None else (0.0, 0.0, 0.0)
+        return T0 + np.asarray(x) * Tx + np.asarray(y) * Ty
+
+    def break_at(self, x: float) -> float | None:
+        """The line ``kx = x``'s crossing ``ky``, or None (no boundary, or parallel to the line)."""
+        if self.coeffs is None or self.coeffs[2] == 0:
+            return None
+        return -(self.coeffs[0] + x * self.coeffs[1]) / self.coeffs[2]
+
+
+def real_boundary(terms: tuple[QuasiPolynomial, ...], m0: int) -> RealBoundary:
+    """The coefficient of order ``m0`` at s = 0 of ``terms`` (the characteristic's parts ``1, kx, ky``).
+
+    ``m0`` is the multiplicity of the shaper's removable root at 0 (a root of the
+    characteristic for every gain, cancelled from the poles).
+    """
+    cs = []
+    for q in terms:
+        if q.is_zero:
+            cs.append((0.0, 0.0))
+            continue
+        c, sc = q.taylor(0.0, m0)
+        cs.append((float(c[m0].real), float(sc[m0])))
+    scale = max(sc for _, sc in cs)
+    vals = tuple(val if abs(val) > 1e-10 * scale else 0.0 for val, _ in cs)
+    return RealBoundary(None if not any(vals) else vals)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------------- s = infinity
+@dataclass(frozen=True)
+class InfiniteBoundary:
+    """Leading coefficients of the characteristic, affine in the gains, per delay.
+
+    ``lead`` is (3, k): the parts ``1, kx, ky`` of the coefficient of ``s^n`` at
+    each of the ``k`` delays ``lead_delays`` (row 0 of the characteristic: the
+    smallest delay present for generic gains).
+    """
+
+    lead: np.ndarray
+    lead_delays: np.ndarray
+
+    @property
+    def neutral_possible(self) -> bool:
+        return self.lead.shape[1] > 1
+
+    @property
+    def lead_varies(self) -> bool:
+        return bool(np.any(self.lead[1:] != 0))
+
+    def value(self, x: Any, y: Any) -> Any:
+        """``sum_{k>0} |d_k| - |d_0|`` (neutral) or ``d_0`` (retarded): its sign flips at the boundary."""
+        x, y = np.broadcast_arrays(np.atleast_1d(np.asarray(x, dtype=float)), np.atleast_1d(np.asarray(y, dtype=float)))
+        L = self.lead[0][:, None] + self.lead[1][:, None] * x[None, :] + self.lead[2][:, None] * y[None, :]
+        if not self.neutral_possible:
+            return L[0]
+        return np.sum(np.abs(L[1:]), axis=0) - np.abs(L[0])
+
+    def breaks(self, x: float) -> np.ndarray:
+        """The ``ky`` where the line ``kx = x`` crosses the boundary, sorted."""
+        if not self.lead_varies:
+            return np.zeros(0)
+        c0 = self.lead[0] + x * self.lead[1]
+        c1 = self.lead[2]
+        if not self.neutral_possible:
+            return np.array([-c0[0] / c1[0]]) if c1[0] != 0 else np.zeros(0)
+        sgn = np.ones(c0.size)
+        sgn[0] = -1.0
+        kinks = [-c0[i] / c1[i] for i in range(c0.size) if c1[i] != 0]
+        pts = sorted(set(kinks))
+        f = lambda yy: float(np.sum(sgn * np.abs(c0 + yy * c1)))  # noqa: E731
+        probes = [pts[0] - 1e6 * (1 + abs(pts[0]))] + pts + [pts[-1] + 1e6 * (1 + abs(pts[-1]))] if pts else []
+        out = []
+        for ya, yb in zip(probes[:-1], probes[1:]):
+            fa, fb = f(ya), f(yb)
+            if fa == 0.0:
+                out.append(ya)
+            elif fa * fb < 0:
+                out.append(ya - fa * (yb - ya) / (fb - fa))
+        return np.array(sorted(set(out)))
+
+
+def infinite_boundary(terms: tuple[QuasiPolynomial, ...]) -> InfiniteBoundary:
+    """The leading coefficients of ``terms`` (the characteristic's parts ``1, kx, ky``) per delay."""
+    n = max(q.degree for q in terms if not q.is_zero)
+    delays = np.unique(np.concatenate([q.delays for q in terms if not q.is_zero]))
+    lead = np.zeros((3, delays.size))
+    for k, q in enumerate(terms):
+        if q.is_zero or q.degree < n:
+            continue
+        for row, tau in zip(q.coeffs, q.delays):
+            j = int(np.argmin(np.abs(delays - tau)))
+            lead[k, j] += row[n]
+    keep = np.any(lead != 0, axis=0)
+    return InfiniteBoundary(lead[:, keep], delays[keep])
+
+
+# ---------------------------------------------------------------------- 1 + L(j omega) = 0
+@dataclass(frozen=True)
+class ComplexCurve:
+    """The complex-root boundary as a curve: ``1 + L(j omega) = 0`` at ``(kx, ky) = (x(omega), y(omega))``.
+
+    ``cross_ok`` marks the columns usable for crossings (finite grid, ``omega > 0``);
+    ``ok`` says the curve form is usable (no column where ``a`` and ``b`` are
+    (nearly) real multiples of each other), else crossings are found line by line.
+    """
+
+    cross_ok: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    ok: bool
+
+
+def complex_curve(cols: Columns) -> ComplexCurve:
+    """Cramer's rule on ``u + kx a + ky b = 0`` (real and imaginary parts) at every usable column."""
+    cross_ok = np.zeros(cols.u.size, dtype=bool)
+    cross_ok[: cols.n_grid] = cols.omega > 0
+    u, a, b = cols.u[cross_ok], cols.a[cross_ok], cols.b[cross_ok]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        det = a.real * b.imag - a.imag * b.real
+        curve_x = (-u.real * b.imag + u.imag * b.real) / det
+        curve_y = (-a.real * u.imag + a.imag * u.real) / det
+    scale = np.abs(a) * np.abs(b)
+    ok = bool(np.all(np.abs(det) > 1e-12 * scale) and np.all(np.isfinite(curve_x)) and np.all(np.isfinite(curve_y)))
+    return ComplexCurve(cross_ok, curve_x, curve_y, ok)
+
+
+def _curve_crossings(c_along: np.ndarray, c_across: np.ndarray,
+                     level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the polyline ``(c_along, c_across)`` crosses ``c_along = level``: (row, value across, column)."""
+    d = c_along[None, :] - level[:, None]
+    sign = np.sign(d)
+    ch = sign[:, :-1] * sign[:, 1:] <= 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = d[:, :-1] / (d[:, :-1] - d[:, 1:])
+    t = np.where(np.isfinite(t), t, 0.0)
+    val = c_across[None, :-1] + t * (c_across[None, 1:] - c_across[None, :-1])
+    jump = np.abs(c_across[1:] - c_across[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_across[:-1]), np.abs(c_across[1:])))
+    jump |= np.abs(c_along[1:] - c_along[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_along[:-1]), np.abs(c_along[1:])))
+    rows, cols = np.nonzero(ch & ~jump[None, :])
+    return rows, val[rows, cols], cols
+
+
+class ComplexBreaks(NamedTuple):
+    """One line's complex-root crossings ``ky``, the crossing columns (-1: exactly on a column; None
+    when not known) and the uncertainty of each (the bracket's width in ``ky``)."""
+
+    ky: np.ndarray
+    columns: np.ndarray | None
+    error: np.ndarray
+
+
+def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[ComplexBreaks]:
+    """Per line ``kx = x[i]``: the complex-root crossings, interpolated between grid columns."""
+    if curve.ok:
+        rows, ys, cc = _curve_crossings(curve.x, curve.y, x)
+        err = np.abs(curve.y[cc + 1] - curve.y[cc])
+        return [ComplexBreaks(ys[rows == i], cc[rows == i], err[rows == i]) for i in range(x.size)]
+    return _complex_breaks_general(cols, curve, x)
+
+
+def _complex_breaks_general(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[ComplexBreaks]:
+    """Sign changes of ``Im(U conj b)`` along each line (the curve form is not usable)."""
+    ok = curve.cross_ok
+    U = cols.u[None, ok] + x[:, None] * cols.a[None, ok]
+    b = cols.b[None, ok]
+    g = (U * b.conj()).imag
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y = -(U / b).real
+    sign = np.sign(g)
+    ch = (sign[:, :-1] * sign[:, 1:] < 0) & np.isfinite(y[:, :-1]) & np.isfinite(y[:, 1:])
+    out = []
+    for i in range(x.size):
+        j = np.flatnonzero(ch[i])
+        t = g[i, j] / (g[i, j] - g[i, j + 1])
+        yy = y[i, j] + t * (y[i, j + 1] - y[i, j])
+        # a sign change through a zero of b (y jumps to infinity) is not a crossing
+        jump = np.abs(y[i, j + 1] - y[i, j]) > 1e3 * (1.0 + np.minimum(np.abs(y[i, j]), np.abs(y[i, j + 1])))
+        keep = ~jump & np.isfinite(yy)
+        out.append(ComplexBreaks(yy[keep], j[keep], np.abs(y[i, j + 1] - y[i, j])[keep]))
+    exact = np.flatnonzero(np.any(sign == 0, axis=0))  # g exactly zero on a grid point
+    for jcol in exact:
+        for i in range(x.size):
+            if g[i, jcol] == 0 and np.isfinite(y[i, jcol]):
+                ys, c, e = out[i]
+                out[i] = ComplexBreaks(np.append(ys, y[i, jcol]), np.append(c, -1), np.append(e, 0.0))
+    return out
+
+
+def crossing_frequency(cols: Columns, x: float, col: int) -> tuple[float, float]:
+    """Exact ``(omega, ky)`` where ``1 + L(j omega) = 0`` on the line ``kx = x``, between crossing
+    columns ``col`` and ``col + 1`` (``Im((u + x a) conj(b)) = 0``, then ``ky = -Re((u + x a) / b)``)."""
+    w_ok = cols.omega[: cols.n_grid][cols.omega[: cols.n_grid] > 0]
+    if col < 0 or col + 1 >= w_ok.size:
+        return math.nan, math.nan
+    w0, w1 = float(w_ok[col]), float(w_ok[col + 1])
+
+    def g(w: float) -> float:
+        v = cols.data.point(w)
+        return float(((v["u"] + x * v["a"]) * np.conj(v["b"])).imag)
+
+    g0, g1 = g(w0), g(w1)
+    if not (np.isfinite(g0) and np.isfinite(g1)) or g0 * g1 > 0:
+        return math.nan, math.nan
+    w = w0 if g0 == 0 else w1 if g1 == 0 else brentq(g, w0, w1, xtol=1e-14 * w1, rtol=1e-15)
+    v = cols.data.point(w)
+    return w, float(-((v["u"] + x * v["a"]) / v["b"]).real)
+
+
+# ---------------------------------------------------------------------- between two lines
+def _curve_hits(cols: Columns, curve: ComplexCurve, lo: np.ndarray, hi: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Does the horizontal segment ``[lo, hi] x {y}`` cross the complex-root boundary?"""
+    ok = curve.cross_ok
+    u, a, b = cols.u[ok], cols.a[ok], cols.b[ok]
+    hit = np.zeros(ys.size, dtype=bool)
+    block = max(1, int(2_000_000 // max(1, u.size)))
+    if curve.ok:
+        for k in range(0, ys.size, block):
+            sl = slice(k, k + block)
+            rows, xs, _ = _curve_crossings(curve.y, curve.x, ys[sl])
+            inside = (xs >= lo[sl][rows]) & (xs <= hi[sl][rows])
+            hit[sl] = np.bincount(rows[inside], minlength=ys[sl].size) > 0
+        return hit
+    for k in range(0, ys.size, block):
+        sl = slice(k, k + block)
+        U = u[None, :] + ys[sl, None] * b[None, :]
+        g = (U * a.conj()[None, :]).imag
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xx = -(U / a[None, :]).real
+            t = g[:, :-1] / (g[:, :-1] - g[:, 1:])
+        sign = np.sign(g)
+        ch = (sign[:, :-1] * sign[:, 1:] <= 0) & np.isfinite(xx[:, :-1]) & np.isfinite(xx[:, 1:])
+        t = np.where(np.isfinite(t), t, 0.0)
+        xc = xx[:, :-1] + t * (xx[:, 1:] - xx[:, :-1])
+        jump = np.abs(xx[:, 1:] - xx[:, :-1]) > 1e3 * (1.0 + np.minimum(np.abs(xx[:, :-1]), np.abs(xx[:, 1:])))
+        hit[sl] = np.any(ch & ~jump & (xc >= lo[sl, None]) & (xc <= hi[sl, None]), axis=1)
+    return hit
+
+
+def horizontal_crossing(cols: Columns, curve: ComplexCurve, real: RealBoundary, infinite: InfiniteBoundary,
+                        x0: Any, x1: Any, ys: Any) -> np.ndarray:
+    """For each ``y``: does the segment ``(x0, y) - (x1, y)`` cross a D-decomposition boundary?
+
+    ``x0``, ``x1`` and ``ys`` broadcast together (one segment each).
+    """
+    x0, x1, ys = (np.asarray(v, dtype=float) for v in np.broadcast_arrays(x0, x1, ys))
+    x0, x1, ys = x0.ravel(), x1.ravel(), ys.ravel()
+    if ys.size == 0:
+        return np.zeros(0, dtype=bool)
+    hit = _curve_hits(cols, curve, np.minimum(x0, x1), np.maximum(x0, x1), ys)
+    if real.coeffs is not None:
+        r0 = real.value(x0, ys)
+        r1 = real.value(x1, ys)
+        hit |= (np.sign(r0) != np.sign(r1)) | (r0 == 0) | (r1 == 0)
+    if infinite.lead_varies:
+        f0 = infinite.value(x0, ys)
+        f1 = infinite.value(x1, ys)
+        hit |= (np.sign(f0) != np.sign(f1)) | (f0 == 0) | (f1 == 0)
+    return hit

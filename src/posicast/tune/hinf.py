@@ -1,0 +1,513 @@
+"""H-infinity constraints on a scan line ``kx = x``: forbidden intervals of ``ky`` (seed 001 section 3).
+
+With ``1 + L = u + kx a + ky b`` and a constraint channel's numerator
+``nu + kx na + ky nb`` (:mod:`posicast.tune.frequency`), the constraint
+``|W X| < gamma`` at one frequency is a quadratic inequality in ``ky``
+(:func:`forbidden_interval`).  On a line, each constraint forbids at every
+column an interval (or two rays); the admissible set is the complement of their
+union (:func:`forbidden`, :func:`complement`).  The ends of the admissible
+intervals are extrema over frequency of one root of one quadratic: a
+:class:`Branch`, refined between grid columns by :func:`polish_ends` and
+:func:`exact_end`.
+"""
+
+from __future__ import annotations
+
+import math
+from enum import IntEnum
+from typing import NamedTuple, Sequence, Union
+
+import numpy as np
+
+from .frequency import Columns
+
+__all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
+           "quadratic_root", "forbidden", "complement", "root_value", "root_values", "roots_at", "polish_ends",
+           "parabola_vertex", "exact_end", "forbidden_window"]
+
+_INF = math.inf
+
+
+# ---------------------------------------------------------------------- named concepts
+class Root(IntEnum):
+    """Which root of the constraint's quadratic in ``ky`` an interval end is."""
+
+    INFINITE = -1  #: no root: the end is at -inf or +inf
+    SMALLER = 0
+    LARGER = 1
+    LINEAR = 2  #: the single root where the quadratic's leading coefficient vanishes
+
+
+class Branch(NamedTuple):
+    """A frequency branch: one root of one constraint's quadratic, followed over frequency.
+
+    It is named by the grid column where it was found.  An interval end computed
+    on the grid is attributed to the branch that makes it.
+    """
+
+    column: int
+    constraint: int
+    root: int
+
+
+class Cut(NamedTuple):
+    """An interval end computed exactly at a refined D-decomposition crossing frequency ``omega``
+    (see :func:`posicast.tune.scan.scan_lines`)."""
+
+    constraint: int
+    omega: float
+
+
+#: What bounds an admissible interval at one end: a branch, an exact cut, or nothing (an infinite
+#: end, a stability break or the range).
+IntervalEnd = Union[Branch, Cut, None]
+
+
+class ForbiddenPiece(NamedTuple):
+    """One piece ``[lo, hi]`` of a constraint's forbidden set (empty where ``lo > hi``).
+
+    ``lower`` and ``upper`` say which roots the ends are; ``run`` marks where the
+    piece exists, for the union over a run of frequencies (None: never joined over
+    frequency, the side may change within a run).
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    lower: Root
+    upper: Root
+    run: np.ndarray | None
+
+
+class Forbidden(NamedTuple):
+    """Forbidden intervals of ``ky`` on ``m`` lines over ``K`` (column, constraint, piece) triples.
+
+    ``lo, hi, col_lo, col_hi`` are (m, K): the ends and the columns they are
+    attributed to; ``constraint, lower_root, upper_root`` are (K,).
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    col_lo: np.ndarray
+    col_hi: np.ndarray
+    constraint: np.ndarray
+    lower_root: np.ndarray
+    upper_root: np.ndarray
+
+
+# ---------------------------------------------------------------------- one constraint at one frequency
+def forbidden_interval(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarray,
+                       w2: np.ndarray) -> tuple[ForbiddenPiece, ...]:
+    """The forbidden ``ky`` of one constraint at one frequency (arrays: any number of lines and frequencies).
+
+    Seed 001 eq. 6-7 (``||W X||_inf < gamma``), transformed to the gain plane as
+    in seed 001 section 3 (Schlegel and Medvecova's "quadratic polynomial"): at
+    one frequency, with ``U = u + kx a`` and ``N = nu + kx na``, the constraint
+    ``|U + ky b|^2 - w2 |N + ky nb|^2 > 0`` (``w2 = |W|^2 / gamma^2``) reads
+
+        A ky^2 + 2 B ky + D > 0,   A = |b|^2 - w2 |nb|^2,
+                                   B = Re(U conj b) - w2 Re(N conj nb),
+                                   D = |U|^2 - w2 |N|^2,
+
+    so the forbidden set ``A ky^2 + 2 B ky + D <= 0`` is, with the roots
+    ``rlo <= rhi`` (stable form ``q = -(B + sign(B) sqrt(B^2 - A D))``, roots
+    ``D / q`` and ``q / A``):
+
+    * ``A > 0``: ``[rlo, rhi]`` (nothing without real roots);
+    * ``A < 0``: ``(-inf, rlo]`` and ``[rhi, inf)`` (everything without real roots);
+    * ``A = 0`` (to 1e-13 of ``|b|^2 + w2 |nb|^2``): ``2 B ky + D <= 0``, a ray
+      from ``-D / (2 B)`` (everything if ``B = 0`` and ``D <= 0``).
+
+    Returns the four pieces in that order (empty ones have ``lo = inf``, ``hi = -inf``).
+    """
+    A = np.abs(b) ** 2 - w2 * np.abs(nb) ** 2
+    Ascale = np.abs(b) ** 2 + w2 * np.abs(nb) ** 2
+    B = (U * b.conj()).real - w2 * (N * nb.conj()).real
+    D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+    A = A * np.ones((U.shape[0], 1))
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        A = np.where(np.abs(A) <= 1e-13 * Ascale, 0.0, A)
+        disc = B * B - A * D
+        sq = np.sqrt(np.maximum(disc, 0.0))
+        q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
+        r1 = np.where(q != 0, D / q, np.where(A != 0, 0.0, np.nan))
+        r2 = np.where(A != 0, q / A, np.where(q > 0, _INF, -_INF))
+    rlo = np.fmin(r1, r2)
+    rhi = np.fmax(r1, r2)
+    valid = np.isfinite(U) & np.isfinite(D) & np.isfinite(B) & np.isfinite(A)
+    pos = valid & (A > 0) & (disc > 0)
+    neg = valid & (A < 0)
+    zer = valid & (A == 0)
+    negd = neg & (disc > 0)
+    negall = neg & ~(disc > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        root = -D / (2.0 * B)
+    zpos = zer & (B > 0)
+    zneg = zer & (B < 0)
+    zall = zer & (B == 0) & (D <= 0)
+    return (
+        ForbiddenPiece(np.where(pos, rlo, _INF), np.where(pos, rhi, -_INF), Root.SMALLER, Root.LARGER, pos),
+        ForbiddenPiece(np.where(negd | negall, -_INF, _INF), np.where(negd, rlo, np.where(negall, _INF, -_INF)),
+                       Root.INFINITE, Root.SMALLER, negd | negall),
+        ForbiddenPiece(np.where(negd, rhi, _INF), np.where(negd, _INF, -_INF), Root.LARGER, Root.INFINITE, negd),
+        ForbiddenPiece(np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF))),
+                       np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF))),
+                       Root.LINEAR, Root.LINEAR, None),
+    )
+
+
+def quadratic_root(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarray, w2: np.ndarray,
+                   root: np.ndarray | int) -> np.ndarray:
+    """Roots in ``ky`` of ``|U + ky b|^2 - w2 |N + ky nb|^2 = 0`` (the constraint's boundary at one frequency).
+
+    ``root``: 0 the smaller, 1 the larger, 2 the single root of the linear case
+    (``A = |b|^2 - w2 |nb|^2 = 0``, also used wherever ``A`` vanishes); see
+    :func:`forbidden_interval`.  NaN where the root does not exist.  The stable
+    form ``q = -(B + sign(B) sqrt(disc))``, roots ``D / q`` and ``q / A``, avoids
+    cancellation.
+    """
+    A = np.abs(b) ** 2 - w2 * np.abs(nb) ** 2
+    B = (U * np.conj(b)).real - w2 * (N * np.conj(nb)).real
+    D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        disc = B * B - A * D
+        sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+        q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
+        small, large = np.fmin(D / q, q / A), np.fmax(D / q, q / A)
+        lin = -D / (2 * B)
+    root = np.asarray(root)
+    return np.where((root == 2) | (A == 0), lin, np.where(root == 0, small, large))
+
+
+# ---------------------------------------------------------------------- over frequency, on lines
+def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
+              dU: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Replace each forbidden interval by the hull of its run of consecutive valid columns.
+
+    Over a connected range of frequencies where the interval exists, the union
+    of the intervals is the interval ``[min lo, max hi]`` (a continuous family
+    of intervals with a connected parameter set), so the hull is the exact
+    union, whatever the grid spacing; where the interval vanished between two
+    grid points the hull forbids a little more, never less.  The grid and the
+    limit columns are separate runs.  Returns ``L, H`` and the columns of the
+    run's extremes (for the polish and the exact refinement).
+
+    Two neighbouring columns belong to one run only where the grid resolves
+    ``1 + L`` for the gains at the intervals' location: ``|dU| + |y| |db|``
+    (``dU`` the change of ``u + kx a``, ``y`` the interval's finite end) must
+    stay below a quarter of the constraint radius.  Elsewhere (e.g. far out,
+    where a delay turns the phase quickly between coarse points) the
+    intervals are kept as they are.
+    """
+    m, n = V.shape
+    cols_idx = np.broadcast_to(np.arange(n), (m, n))
+    prev = np.zeros_like(V)
+    prev[:, 1:] = V[:, :-1]
+    if n > cols.n_grid:
+        prev[:, cols.n_grid] = False
+    with np.errstate(invalid="ignore"):
+        y = np.abs(np.where(np.isfinite(L), L, H))
+        y = np.where(np.isfinite(y), y, _INF)
+        ymax = np.maximum(y[:, 1:], y[:, :-1])
+        change = dU + ymax * np.abs(np.diff(cols.b))[None, :]
+    prev[:, 1:] &= change <= 0.25 * cols.data.r_min
+    start = V & ~prev
+    if not V.any():
+        return L, H, cols_idx.copy(), cols_idx.copy()
+    # runs are contiguous in the flattened valid entries: segment reductions with reduceat
+    Vf = V.ravel()
+    Lv, Hv, Cv = L.ravel()[Vf], H.ravel()[Vf], cols_idx.ravel()[Vf]
+    starts = np.flatnonzero(start.ravel()[Vf])
+    lo = np.minimum.reduceat(Lv, starts)
+    hi = np.maximum.reduceat(Hv, starts)
+    seg = np.cumsum(start.ravel()[Vf]) - 1
+    amin = np.minimum.reduceat(np.where(Lv == lo[seg], Cv, n), starts)
+    amax = np.minimum.reduceat(np.where(Hv == hi[seg], Cv, n), starts)
+    outL, outH = L.copy(), H.copy()
+    cl, ch = cols_idx.copy(), cols_idx.copy()
+    outL.ravel()[Vf] = lo[seg]
+    outH.ravel()[Vf] = hi[seg]
+    cl.ravel()[Vf] = amin[seg]
+    ch.ravel()[Vf] = amax[seg]
+    return outL, outH, cl, ch
+
+
+def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = True) -> Forbidden:
+    """Forbidden ky-intervals for lines ``x`` (m,), over every column and constraint in ``which``.
+
+    Each (column, constraint) gives the pieces of :func:`forbidden_interval`;
+    with ``hull`` each piece is replaced by the hull of its frequency run
+    (:func:`_run_hull`).
+    """
+    m = x.size
+    los, his, cl, ch, cons, lr, hr = [], [], [], [], [], [], []
+    ncol = cols.u.size
+    colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
+    for ci in which:
+        nu, na, nb, w2 = cols.constraints[ci]
+        U = cols.u[None, :] + x[:, None] * cols.a[None, :]
+        N = nu[None, :] + x[:, None] * na[None, :]
+        pieces = forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])
+        dU = np.abs(np.diff(U, axis=1)) if hull else None
+        for lo_, hi_, lroot, hroot, V in pieces:
+            if hull and V is not None:
+                lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
+            else:
+                c_lo = c_hi = colidx
+            los.append(lo_)
+            his.append(hi_)
+            cl.append(c_lo)
+            ch.append(c_hi)
+            cons.append(np.full(ncol, ci))
+            lr.append(np.full(ncol, int(lroot)))
+            hr.append(np.full(ncol, int(hroot)))
+    return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), np.concatenate(cl, axis=1),
+                     np.concatenate(ch, axis=1), np.concatenate(cons), np.concatenate(lr), np.concatenate(hr))
+
+
+#: What bounds each admissible interval of a line, below and above.
+Ends = list[tuple[IntervalEnd, IntervalEnd]]
+
+
+def complement(f: Forbidden) -> list[tuple[np.ndarray, Ends]]:
+    """Per line: admissible open intervals (complement of the union of ``f``) and their ends' branches."""
+    order = np.argsort(f.lo, axis=1, kind="stable")
+    los = np.take_along_axis(f.lo, order, axis=1)
+    his = np.take_along_axis(f.hi, order, axis=1)
+    cm = np.maximum.accumulate(his, axis=1)
+    return [_line_complement(f, i, los[i], cm[i], order[i], his[i]) for i in range(f.lo.shape[0])]
+
+
+def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: np.ndarray,
+                     hi_: np.ndarray) -> tuple[np.ndarray, Ends]:
+    """The gaps of one line's sorted forbidden intervals (``li`` sorted lower ends, ``ci`` the running
+    maximum of the upper ends ``hi_``, ``oi`` the sort order)."""
+    nvalid = int(np.searchsorted(li, _INF, side="left"))  # intervals with lo < inf
+    if nvalid == 0:
+        return np.array([[-_INF, _INF]]), [(None, None)]
+    li, ci, oi, hi_ = li[:nvalid], ci[:nvalid], oi[:nvalid], hi_[:nvalid]
+
+    def attr_hi(j: int) -> Branch | None:  # the interval whose hi is the running max at j
+        k = int(np.argmax(hi_[: j + 1]))
+        kk = oi[k]
+        return Branch(int(f.col_hi[i, kk]), int(f.constraint[kk]), int(f.upper_root[kk])) \
+            if math.isfinite(hi_[k]) else None
+
+    def attr_lo(j: int) -> Branch | None:
+        kk = oi[j]
+        return Branch(int(f.col_lo[i, kk]), int(f.constraint[kk]), int(f.lower_root[kk])) \
+            if math.isfinite(li[j]) else None
+
+    iv: list[tuple[float, float]] = []
+    ends: Ends = []
+    if li[0] > -_INF:
+        iv.append((-_INF, li[0]))
+        ends.append((None, attr_lo(0)))
+    gaps = np.flatnonzero(li[1:] > ci[:-1])
+    for j in gaps:
+        iv.append((ci[j], li[j + 1]))
+        ends.append((attr_hi(int(j)), attr_lo(int(j) + 1)))
+    if ci[-1] < _INF:
+        iv.append((ci[-1], _INF))
+        ends.append((attr_hi(nvalid - 1), None))
+    return np.array(iv, dtype=float).reshape(-1, 2), ends
+
+
+# ---------------------------------------------------------------------- one root between columns
+def root_values(cols: Columns, x: np.ndarray, col: np.ndarray, ci: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """The quadratic's roots at grid columns, vectorised (NaN where the root does not exist)."""
+    out = np.full(x.shape, np.nan)
+    for c in np.unique(ci):
+        sel = ci == c
+        nu, na, nb, w2 = (arr[col[sel]] for arr in cols.constraints[int(c)])
+        u, a, b = cols.u[col[sel]], cols.a[col[sel]], cols.b[col[sel]]
+        out[sel] = quadratic_root(u + x[sel] * a, nu + x[sel] * na, b, nb, w2, root[sel])
+    return out
+
+
+def root_value(cols: Columns, x: float, col: int, ci: int, root: int) -> float:
+    """The quadratic's root ``root`` (0 smaller, 1 larger, 2 linear) at one column (NaN if none)."""
+    return float(root_values(cols, np.array([x]), np.array([col]), np.array([ci]), np.array([root]))[0])
+
+
+def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root: int) -> np.ndarray:
+    """The quadratic's root ``root`` at exact values ``vals`` (arrays over frequency)."""
+    w2 = np.abs(vals[f"W{ci}"]) ** 2 / cols.data.constraints[ci].gamma ** 2
+    return quadratic_root(vals["u"] + x * vals["a"], vals[f"nu{ci}"] + x * vals[f"na{ci}"], vals["b"],
+                          vals[f"nb{ci}"], w2, root)
+
+
+def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
+                upper: np.ndarray, rounds: int = 4) -> np.ndarray:
+    """Exact interval ends: the extremum over frequency of each end's root, refined between its
+    column's neighbours (vectorised over all ends).
+
+    An upper end of an admissible interval is the minimum over frequency of a
+    forbidden interval's lower root (``upper``); a lower end is a maximum.
+    Each round evaluates the exact frequency response at 9 points per end (one
+    call for all ends) and keeps the two intervals around the best point, so the
+    bracket shrinks 4x per round; the grid value stands where nothing better is
+    found.  (A parabola through three grid points, used before, can overshoot a
+    sharp minimum and make the region smaller than it is.)
+    """
+    idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
+    if not idx:
+        return values
+    k = np.array(idx)
+    col = np.array([ends[i][0] for i in idx])
+    ci = np.array([ends[i][1] for i in idx])
+    rt = np.array([ends[i][2] for i in idx])
+    xs = x[k]
+    sign = np.where(upper[k], 1.0, -1.0)
+    lo = cols.omega[col - 1].astype(float)
+    hi = cols.omega[col + 1].astype(float)
+    best = sign * values[k]
+    best = np.where(np.isfinite(best), best, _INF)
+    t = np.linspace(0.0, 1.0, 9)
+    for _ in range(rounds):
+        w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
+        vals = cols.data.values(w.ravel())
+        f = np.full(w.shape, _INF)
+        for c in np.unique(ci):
+            sel = np.flatnonzero(ci == c)
+            rows = (sel[:, None] * 9 + np.arange(9)[None, :]).ravel()
+            w2 = np.abs(vals[f"W{c}"][rows]) ** 2 / cols.data.constraints[int(c)].gamma ** 2
+            r = quadratic_root(vals["u"][rows] + np.repeat(xs[sel], 9) * vals["a"][rows],
+                               vals[f"nu{c}"][rows] + np.repeat(xs[sel], 9) * vals[f"na{c}"][rows],
+                               vals["b"][rows], vals[f"nb{c}"][rows], w2, np.repeat(rt[sel], 9))
+            f[sel] = (np.repeat(sign[sel], 9) * r).reshape(-1, 9)
+        f = np.where(np.isfinite(f), f, _INF)
+        j = np.argmin(f, axis=1)
+        fj = f[np.arange(f.shape[0]), j]
+        best = np.minimum(best, fj)
+        wj = w[np.arange(w.shape[0]), j]
+        step = (hi - lo) / 8.0
+        lo, hi = np.maximum(lo, wj - step), np.minimum(hi, wj + step)
+    out = values.copy()
+    out[k] = np.where(np.isfinite(best), sign * best, values[k])
+    return out
+
+
+def parabola_vertex(f0: float, f1: float, f2: float) -> float | None:
+    """The correction ``f1 - vertex`` of the parabola through three equally spaced samples around a
+    minimum ``f1``, or None where the curvature is rounding noise.
+
+    The correction is trusted only above rounding, and never beyond the samples'
+    own spread (in a tiny bracket the curvature is rounding noise).
+    """
+    curv = f0 - 2 * f1 + f2
+    if curv > 64 * np.finfo(float).eps * max(abs(f0), abs(f1), abs(f2), 1e-300):
+        return min((f2 - f0) ** 2 / (8 * curv), max(f0, f2) - f1)
+    return None
+
+
+def exact_end(cols: Columns, x: float, end: Branch, upper: bool, rounds: int = 7) -> tuple[float, float]:
+    """Exact extremum over frequency of one interval end: ``(ky, omega)``.
+
+    Zooms in on the extremum between the column's neighbours: each round
+    evaluates the exact frequency response at 9 points and keeps the two
+    intervals around the best (the bracket shrinks 4x per round), then a
+    parabola through the last three points.
+    """
+    col, ci, root = end
+    if col >= cols.n_grid:  # a limit column: no frequency to refine
+        return root_value(cols, x, col, ci, root), math.inf
+    lo = float(cols.omega[max(col - 1, 0)])
+    hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
+    sign = 1.0 if upper else -1.0
+    base = root_value(cols, x, col, ci, root)
+    best_v, best_w = (sign * base if math.isfinite(base) else math.inf), float(cols.omega[col])
+    if not hi > lo:
+        return base, best_w
+    for _ in range(rounds):
+        w = np.linspace(lo, hi, 9)
+        f = sign * roots_at(cols, x, cols.data.values(w), ci, root)
+        f = np.where(np.isfinite(f), f, math.inf)
+        k = int(np.argmin(f))
+        if f[k] < best_v:
+            best_v, best_w = float(f[k]), float(w[k])
+        lo, hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
+        if 0 < k < 8 and np.all(np.isfinite(f[k - 1 : k + 2])):
+            f0, f1, f2 = f[k - 1 : k + 2]
+            corr = parabola_vertex(f0, f1, f2)
+            if corr is not None:
+                vertex = f1 - corr
+                if vertex < best_v:
+                    h = w[1] - w[0]
+                    best_v, best_w = float(vertex), float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
+    return sign * best_v, best_w
+
+
+# ---------------------------------------------------------------------- a window narrower than the grid
+def _interval_width(cols: Columns, x: float, ci: int, ws: np.ndarray) -> np.ndarray:
+    """``hi - lo`` of constraint ``ci``'s forbidden interval at each frequency (-1 where it does not exist)."""
+    ws = np.asarray(ws, dtype=float)
+    ok = ws > 0
+    res = np.full(ws.shape, -1.0)
+    if np.any(ok):
+        vals = cols.data.values(ws[ok])
+        lo = roots_at(cols, x, vals, ci, 0)
+        hi = roots_at(cols, x, vals, ci, 1)
+        res[ok] = np.where(np.isfinite(lo) & np.isfinite(hi), hi - lo, -1.0)
+    return res
+
+
+def _window_edges(cols: Columns, x: float, ci: int, w: float, steps: np.ndarray) -> list[float]:
+    """The frequencies just inside both edges of the window around ``w`` where the interval exists.
+
+    A geometric walk outward from ``w`` brackets each edge; each open bracket
+    (inside, outside) is then narrowed 32-fold per round: 4 rounds put the edge
+    within 1e-6 of the walk's last step, far below the 801-point sampling of the
+    window in :func:`forbidden_window`.
+    """
+    walk = _interval_width(cols, x, ci, np.concatenate([w - steps, w + steps])).reshape(2, -1)
+    brackets: list[tuple[float, float | None]] = []
+    for side, row in zip((-1.0, 1.0), walk):
+        bad = np.flatnonzero(~(row > 0))
+        if bad.size == 0:
+            brackets.append((w + side * steps[-1], None))
+            continue
+        k = int(bad[0])
+        brackets.append((w + side * steps[k - 1] if k > 0 else w, w + side * steps[k]))
+    for _ in range(4):
+        live = [k for k, (_, o) in enumerate(brackets) if o is not None]
+        if not live:
+            break
+        pts = np.concatenate([np.linspace(brackets[k][0], brackets[k][1], 33)[1:] for k in live])
+        wd = _interval_width(cols, x, ci, pts).reshape(len(live), 32)
+        for r, k in enumerate(live):
+            inside, outside = brackets[k]
+            grid = np.linspace(inside, outside, 33)
+            bad = np.flatnonzero(~(wd[r] > 0))
+            j = int(bad[0]) if bad.size else 31
+            brackets[k] = (float(grid[j]), float(grid[j + 1]))
+    return [inside for inside, _ in brackets]
+
+
+def forbidden_window(cols: Columns, x: float, w: float) -> list[tuple[int, tuple[float, float]]]:
+    """Exact union of each constraint's forbidden ``ky`` intervals over the frequency window around ``w``.
+
+    At a crossing of the D-decomposition curve the forbidden interval exists in
+    a window of frequencies (possibly far narrower than the grid), and its
+    centre can sweep a long way across it (large gains).  The window's edges
+    (where the quadratic's discriminant vanishes) are bracketed by a geometric
+    walk outward from ``w`` and narrowed by vectorised subdivision; the window is
+    then sampled densely, and the union is the hull ``[min lo, max hi]`` (a
+    continuous family of intervals over a connected window).  Every stage
+    evaluates the exact frequency response at many frequencies in one call.
+    Returns ``(constraint, (lo, hi))`` for each constraint forbidding anything at ``w``.
+    """
+    out = []
+    # offsets of the outward walk: (2^(k+1) - 1) 1e-6 w, k = 0..59, on both sides of w
+    steps = (2.0 ** np.arange(1, 61) - 1.0) * 1e-6 * w
+    for ci in range(cols.n_constraints):
+        if not _interval_width(cols, x, ci, np.array([w]))[0] > 0:
+            continue
+        edges = _window_edges(cols, x, ci, w, steps)
+        ww = np.linspace(min(edges), max(edges), 801)
+        vals = cols.data.values(ww)
+        lo = roots_at(cols, x, vals, ci, 0)
+        hi = roots_at(cols, x, vals, ci, 1)
+        ok = np.isfinite(lo) & np.isfinite(hi)
+        if np.any(ok):
+            out.append((ci, (float(lo[ok].min()), float(hi[ok].max()))))
+    return out

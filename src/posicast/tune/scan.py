@@ -1,0 +1,349 @@
+"""The line scan: the gain plane along lines ``kx = const`` (seed 001 section 3, steps 4-5 of Algorithm 1).
+
+On each line:
+
+1. **H-infinity regions, exactly in ky** (:mod:`posicast.tune.hinf`).  At every
+   frequency a constraint is a quadratic in ``ky``: its forbidden set is an
+   interval (or two rays).  Over a connected run of frequencies the union of
+   these intervals is ``[min lo, max hi]``, so the admissible set on the line is
+   the complement of a few intervals whose ends are extrema over frequency of
+   the quadratic's roots.  The extrema come from the refined grid
+   (:class:`~posicast.tune.frequency.FrequencyData`), polished between columns;
+   the chosen design point gets an exact 1-D refinement in frequency.
+2. **D-decomposition** (:mod:`posicast.tune.boundaries`): the complex-, real- and
+   infinite-root boundaries break the line into segments, each inside one
+   D-decomposition cell.
+
+:class:`Problem` holds what the scan needs for one tuning problem;
+:func:`scan_lines` returns one :class:`LineData` per line.  The cells are
+joined and labelled in :mod:`posicast.tune.cells`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..core.quasipoly import QuasiPolynomial
+from ..loops import Loop
+from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
+                         complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
+from .cells import StabilityLedger
+from .frequency import Columns, FrequencyData, columns_of
+from .hinf import Cut, Ends, complement, forbidden, forbidden_window, polish_ends
+
+__all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "intersect", "subtract"]
+
+_INF = math.inf
+
+
+# ---------------------------------------------------------------------- the problem
+@dataclass(frozen=True)
+class Problem:
+    """Everything the line scan of one tuning problem needs.
+
+    Attributes
+    ----------
+    columns : Columns
+        The frequency data on the current grid.
+    curve : ComplexCurve
+        The complex-root boundary on that grid.
+    real, infinite : RealBoundary, InfiniteBoundary
+        The boundaries at s = 0 and s = infinity (independent of the grid).
+    loop_factory : callable
+        ``(kx, ky) -> Loop``, for the certified spectrum checks.
+    y_window : (float, float)
+        The ``ky`` window of interest (the tuning's ``ky_range`` or its automatic
+        search window): H-infinity intervals are clipped to it, so that no work is
+        spent beyond it.
+    x_valid, y_valid : float
+        The largest ``|kx|``, ``|ky|`` for which the grid covers every frequency
+        where that term of ``L`` matters (:func:`_valid_gain`).
+    ledger : StabilityLedger
+        The certified spectrum checks made so far.
+    """
+
+    columns: Columns
+    curve: ComplexCurve
+    real: RealBoundary
+    infinite: InfiniteBoundary
+    loop_factory: Callable[[float, float], Loop]
+    y_window: tuple[float, float]
+    x_valid: float
+    y_valid: float
+    ledger: StabilityLedger = field(default_factory=StabilityLedger)
+
+    @property
+    def fd(self) -> FrequencyData:
+        """The frequency data (exact evaluation off the grid)."""
+        return self.columns.data
+
+    def crossing(self, x0: Any, x1: Any, ys: Any) -> np.ndarray:
+        """:func:`~posicast.tune.boundaries.horizontal_crossing` for this problem."""
+        return horizontal_crossing(self.columns, self.curve, self.real, self.infinite, x0, x1, ys)
+
+
+def _settled(fd: FrequencyData) -> float:
+    """How small ``|L|`` must be past the grid's end for every constraint to hold there.
+
+    1e-3 in general.  With unweighted ``||S||inf < Ms`` constraints only,
+    ``|L| <= eps`` gives ``|S| <= 1 / (1 - eps)``, below ``Ms`` for
+    ``eps < 1 - 1 / Ms``: half of that (at most 0.1) is used.  ``|L| < 1`` also
+    rules out a root of ``1 + L`` there.
+    """
+    cons = fd.constraints
+    if cons and all(c.kind == "S" and c.weight is None for c in cons):
+        g = min(c.gamma for c in cons)
+        if g > 1.0:
+            return float(min(0.1, max(1e-3, 0.5 * (1.0 - 1.0 / g))))
+    return 1e-3
+
+
+def _valid_gain(cols: Columns, term: np.ndarray, m: int) -> float:
+    """Largest gain for which the grid covers every frequency where that term of ``L`` matters.
+
+    The grid ends at least 30 times above every feature, where a decaying
+    term (relative degree ``m < 0``) only decays further; for gains up to this
+    bound it is below :func:`_settled` past the grid's end, so ``1 + L`` and
+    the channels are settled there.  A term with a nonzero limit (``m = 0``) is covered by
+    the limit columns at every gain.  :meth:`FrequencyData.refine` extends
+    the grid when larger gains are scanned.
+    """
+    if m >= 0:
+        return _INF
+    last = abs(term[cols.n_grid - 1])
+    return _INF if not last > 0 else _settled(cols.data) / last
+
+
+def make_problem(fd: FrequencyData, loop_factory: Callable[[float, float], Loop],
+                 char_terms: tuple[QuasiPolynomial, QuasiPolynomial, QuasiPolynomial], zero_order: int,
+                 y_window: tuple[float, float]) -> Problem:
+    """The scan's problem on ``fd``'s current grid (``char_terms``: the characteristic's parts ``1, kx, ky``;
+    ``zero_order``: the multiplicity of the shaper's removable root at 0)."""
+    return _on_grid(fd, loop_factory, real_boundary(char_terms, zero_order), infinite_boundary(char_terms),
+                    y_window, StabilityLedger())
+
+
+def regrid(problem: Problem) -> Problem:
+    """The same problem on its frequency data's new grid (after :meth:`FrequencyData.refine`)."""
+    return _on_grid(problem.fd, problem.loop_factory, problem.real, problem.infinite, problem.y_window,
+                    problem.ledger)
+
+
+def _on_grid(fd: FrequencyData, loop_factory: Callable[[float, float], Loop], real: RealBoundary,
+             infinite: InfiniteBoundary, y_window: tuple[float, float], ledger: StabilityLedger) -> Problem:
+    cols = columns_of(fd)
+    return Problem(cols, complex_curve(cols), real, infinite, loop_factory, y_window,
+                   _valid_gain(cols, cols.a, fd.asymptote("a").m), _valid_gain(cols, cols.b, fd.asymptote("b").m),
+                   ledger)
+
+
+# ---------------------------------------------------------------------- per-line data
+@dataclass(frozen=True)
+class LineData:
+    """Everything known on one line ``kx = x``.
+
+    Attributes
+    ----------
+    x : float
+    hinf : ndarray, shape (k, 2)
+        Intervals of ``ky`` meeting every H-infinity constraint (open; ends may be +/-inf).
+    per_constraint : list of ndarray
+        The same for each constraint alone.
+    breaks : ndarray
+        Sorted D-decomposition crossings; segment ``j`` is ``(breaks[j-1], breaks[j])``.
+    break_kind : ndarray of str
+        :class:`~posicast.tune.boundaries.BreakKind` values: ``'c'`` complex-root,
+        ``'r'`` real-root (s = 0), ``'i'`` infinite-root.
+    ends : list of (IntervalEnd, IntervalEnd)
+        What bounds each ``hinf`` interval below and above (None for an infinite end).
+    comp : ndarray of int
+        Component id of each segment (``len(breaks) + 1``), -1 if not assigned.
+    break_err : ndarray
+        Uncertainty of each break: complex-root crossings are interpolated between
+        grid columns (the width of that bracket in ``ky``), unless refined exactly.
+    """
+
+    x: float
+    hinf: np.ndarray
+    per_constraint: list[np.ndarray]
+    breaks: np.ndarray
+    break_kind: np.ndarray
+    ends: Ends
+    comp: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
+    break_err: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def error_at(self, value: float) -> float:
+        """Uncertainty of the break at ``value`` (0 for exact breaks and infinite ends)."""
+        if not math.isfinite(value) or self.breaks.size == 0:
+            return 0.0
+        k = int(np.argmin(np.abs(self.breaks - value)))
+        return float(self.break_err[k]) if self.breaks[k] == value and self.break_err.size else 0.0
+
+    def segment_bounds(self, j: int) -> tuple[float, float]:
+        lo = -_INF if j == 0 else float(self.breaks[j - 1])
+        hi = _INF if j == self.breaks.size else float(self.breaks[j])
+        return lo, hi
+
+    @property
+    def n_segments(self) -> int:
+        return self.breaks.size + 1
+
+
+def subtract(iv: np.ndarray, ends: Ends, cuts: list[tuple[float, float, Cut]]) -> tuple[np.ndarray, Ends]:
+    """Remove the closed intervals ``cuts`` from the open intervals ``iv``; a new end is its :class:`Cut`."""
+    out, out_ends = [], []
+    for (lo, hi), (e_lo, e_hi) in zip(iv, ends):
+        pieces = [(lo, hi, e_lo, e_hi)]
+        for c0, c1, tag in cuts:
+            nxt = []
+            for a, b, ea, eb in pieces:
+                if c1 <= a or c0 >= b:
+                    nxt.append((a, b, ea, eb))
+                    continue
+                if a < c0:
+                    nxt.append((a, c0, ea, tag))
+                if c1 < b:
+                    nxt.append((c1, b, tag, eb))
+            pieces = nxt
+        for a, b, ea, eb in pieces:
+            out.append((a, b))
+            out_ends.append((ea, eb))
+    return np.array(out, dtype=float).reshape(-1, 2), out_ends
+
+
+def intersect(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Intersection of two sorted lists of disjoint open intervals."""
+    out = []
+    i = j = 0
+    while i < len(a) and j < len(b):
+        lo = max(a[i][0], b[j][0])
+        hi = min(a[i][1], b[j][1])
+        if lo < hi:
+            out.append((lo, hi))
+        if a[i][1] < b[j][1]:
+            i += 1
+        else:
+            j += 1
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
+# ---------------------------------------------------------------------- the scan
+def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
+    """Compute :class:`LineData` for each ``x`` in ``xs`` (vectorised over frequency, in blocks of lines)."""
+    cols = problem.columns
+    nc = cols.n_constraints
+    xs = np.asarray(xs, dtype=float)
+    out: list[LineData] = []
+    block = max(1, int(2_000_000 // max(1, cols.u.size * max(1, nc))))
+    for k in range(0, xs.size, block):
+        xb = xs[k : k + block]
+        total = complement(forbidden(cols, xb, range(nc)))
+        per: list[list[np.ndarray]] = [[] for _ in xb]
+        if nc > 1:
+            for ci in range(nc):
+                for i, (iv, _) in enumerate(complement(forbidden(cols, xb, [ci]))):
+                    per[i].append(iv)
+        cbr = complex_breaks(cols, problem.curve, xb)
+        polished = _polish_block(cols, xb, total)
+        for i, x in enumerate(xb):
+            iv, ends, per_i = _clip_to_window(problem, polished[i], total[i][1], per[i])
+            iv, ends, cx = _cut_missed_intervals(problem, float(x), iv, ends, cbr[i])
+            breaks, kinds, errs = _line_breaks(problem, x, cx)
+            out.append(LineData(float(x), iv, per_i if nc > 1 else [iv], breaks, kinds, ends,
+                                np.full(breaks.size + 1, -1, dtype=int), errs))
+    return out
+
+
+def _polish_block(cols: Columns, xb: np.ndarray, total: list[tuple[np.ndarray, Ends]]) -> list[np.ndarray]:
+    """Every interval end of a block of lines polished in one vectorised pass (:func:`polish_ends`)."""
+    flat_ends = [e for _, ends in total for pair in ends for e in pair]
+    flat_x = np.concatenate([np.full(2 * len(ends), x) for x, (_, ends) in zip(xb, total)])
+    flat_v = np.concatenate([iv.reshape(-1) for iv, _ in total])
+    upper = np.concatenate([np.tile([False, True], len(ends)) for _, ends in total])
+    polished = polish_ends(cols, flat_x, flat_ends, flat_v, upper)
+    offsets = np.cumsum([0] + [2 * len(ends) for _, ends in total])
+    return [polished[offsets[i] : offsets[i + 1]].reshape(-1, 2).copy() for i in range(len(total))]
+
+
+def _clip_to_window(problem: Problem, iv: np.ndarray, ends: Ends,
+                    per: list[np.ndarray]) -> tuple[np.ndarray, Ends, list[np.ndarray]]:
+    """Clip a line's intervals to the verified gains and the search window.
+
+    Beyond ``y_valid`` the grid does not cover the loop's crossover: not
+    verified, not admissible; outside the search window (``y_window``) nothing
+    is wanted.  An upper end moved by the clip is no longer a branch's.
+    """
+    y_lo = max(-problem.y_valid, problem.y_window[0])
+    y_hi = min(problem.y_valid, problem.y_window[1])
+    clipped_hi = iv[:, 1] > y_hi
+    iv[:, 0] = np.maximum(iv[:, 0], y_lo)
+    iv[:, 1] = np.minimum(iv[:, 1], y_hi)
+    keep = iv[:, 0] < iv[:, 1]
+    ends = [(e[0], None if c else e[1]) for e, c in zip(ends, clipped_hi)]
+    iv = iv[keep]
+    ends = [e for e, kk in zip(ends, keep) if kk]
+    return iv, ends, [np.clip(p, y_lo, y_hi) for p in per]
+
+
+def _cut_missed_intervals(problem: Problem, x: float, iv: np.ndarray, ends: Ends,
+                          cbr: ComplexBreaks) -> tuple[np.ndarray, Ends, ComplexBreaks]:
+    """Refine the complex-root crossings inside admissible intervals, and cut what the grid missed.
+
+    A crossing of the D-decomposition curve inside an H-infinity-admissible
+    interval: ``|S|`` is infinite there, so (for a constraint that bounds ``S``
+    there) a forbidden interval must hold it.  The grid can miss that interval
+    when it exists only in a frequency window narrower than its spacing (large
+    gains move the ellipse fast).  The crossing is refined exactly, and the
+    exact forbidden intervals at its frequency are cut from the line.
+    """
+    cys, ccols, cerr = cbr
+    cys, cerr = cys.copy(), cerr.copy()
+    if ccols is not None and cys.size and iv.size:
+        inside = np.any((cys[:, None] > iv[None, :, 0]) & (cys[:, None] < iv[None, :, 1]), axis=1)
+        cuts: list[tuple[float, float, Cut]] = []
+        for k in np.flatnonzero(inside):
+            wk, yk = crossing_frequency(problem.columns, x, int(ccols[k]))
+            if math.isfinite(yk):
+                cys[k], cerr[k] = yk, 0.0
+                cuts += [(lo_, hi_, Cut(ci_, wk)) for ci_, (lo_, hi_) in forbidden_window(problem.columns, x, wk)]
+        if cuts:
+            iv, ends = subtract(iv, ends, cuts)
+    return iv, ends, ComplexBreaks(cys, ccols, cerr)
+
+
+def _line_breaks(problem: Problem, x: Any, cbr: ComplexBreaks) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The line's D-decomposition breaks, sorted and deduplicated: ``(ky, kind, uncertainty)``.
+
+    Breaks outside the ky window are dropped but for the nearest one beyond each
+    end, so that the segments meeting the window are true D-decomposition cells
+    (a delay loop's curve spirals out and crosses a line thousands of times at
+    gains nobody asked about).
+    """
+    br = [cbr.ky]
+    errs = [cbr.error]
+    kinds = [np.full(cbr.ky.size, BreakKind.COMPLEX.value)]
+    yr = problem.real.break_at(x)
+    if yr is not None:
+        br.append(np.array([yr]))
+        errs.append(np.zeros(1))
+        kinds.append(np.array([BreakKind.REAL.value]))
+    yi = problem.infinite.breaks(float(x))
+    br.append(yi)
+    errs.append(np.zeros(yi.size))
+    kinds.append(np.full(yi.size, BreakKind.INFINITE.value))
+    allb = np.concatenate(br)
+    alle = np.concatenate(errs)
+    allk = np.concatenate(kinds)
+    order = np.argsort(allb, kind="stable")
+    allb, alle, allk = allb[order], alle[order], allk[order]
+    keepb = np.concatenate([[True], np.diff(allb) > 1e-12 * (1 + np.abs(allb[1:]))]) if allb.size else np.zeros(0, bool)
+    w_lo, w_hi = problem.y_window
+    below = np.flatnonzero(keepb & (allb < w_lo))
+    above = np.flatnonzero(keepb & (allb > w_hi))
+    keepb[below[:-1]] = False
+    keepb[above[1:]] = False
+    return allb[keepb], allk[keepb], alle[keepb]
