@@ -11,7 +11,7 @@ import posicast
 from posicast import Mode, design
 from posicast.cli import main
 from posicast.identification import klipper_log, klipper_smoothing, load_csv, synthetic, whiteness
-from posicast.identification.estimators import _radius_from_bandwidth, resonator_bandwidth
+from posicast.identification.frequency_domain import _radius_from_bandwidth, resonator_bandwidth
 from posicast.identification.report import SEED_MODE, trial_stats
 from posicast.identification.synthetic import simulate
 

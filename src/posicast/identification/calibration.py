@@ -32,7 +32,8 @@ from ..firmware import FIRMWARES, Firmware, Klipper, MarlinFT, Prusa, RepRapFirm
 from ..modes import Mode
 from ..shapers import Shaper
 from .data import Dataset, load_csv
-from .estimators import METHODS, Identification, Interval, identify
+from .estimators import METHODS, identify
+from .results import Identification, Interval
 from .recommend import ModeBox, Recommendation, mode_boxes, optimum, recommend_setting
 from .resonance import ResonanceData, resonance_data
 from .significance import NoModeFound

@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from .calibration import Calibration
-from .estimators import Identification
+from .results import Identification
 
 __all__ = ["fit_plot", "calibration_plot"]
 

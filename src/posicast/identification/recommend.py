@@ -48,7 +48,7 @@ from ..firmware.base import smoothing_offsets
 from ..firmware.klipper import DEFAULT_DAMPING, _above_threshold, firmware_vibrations, klipper_recommendation
 from ..modes import Mode
 from ..shapers import Shaper, design
-from .estimators import Interval
+from .results import Interval
 
 __all__ = ["ModeBox", "mode_boxes", "Candidate", "Recommendation", "recommend_setting", "optimum",
            "klipper_smoothing"]
