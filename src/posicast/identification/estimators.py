@@ -48,7 +48,9 @@ from .frequency_domain import _radius_from_bandwidth, resonator_bandwidth  # noq
 from .output_error import OESettings, significant_oe
 from .results import Identification, Interval
 from .significance import MAX_MODES, NoModeFound, at_band_edge  # noqa: F401 (at_band_edge: old home)
-from .spectral import KAISER6_CORRELATION, Spectrum, fit_spectrum, welch_dispersion, welch_kernel, welch_psd
+from .spectral import fit_spectrum
+from .spectral_model import Spectrum
+from .welch import KAISER6_CORRELATION, welch_dispersion, welch_kernel, welch_psd
 
 __all__ = ["Interval", "Identification", "identify", "METHODS", "whiteness", "fit_percent"]
 

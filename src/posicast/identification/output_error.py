@@ -21,20 +21,13 @@ from scipy import optimize, signal, stats
 
 from ..modes import Mode
 from .fit_statistics import fit_percent, numerical_jacobian, pole_intervals, whiteness
-from .results import Identification
+from .results import Identification, PeakGuess
 from .significance import ModeTest, NoModeFound, describe_failure, search_cells, wald_test
 
-__all__ = ["ZETA_MIN", "ZETA_MAX", "OEModel", "OESettings", "OEFit", "PeakGuess", "fit_oe", "significant_oe"]
+__all__ = ["ZETA_MIN", "ZETA_MAX", "OEModel", "OESettings", "OEFit", "fit_oe", "significant_oe"]
 
 #: The damping ratios the time-domain fits search (also the clip of the frequency-domain and decay starts).
 ZETA_MIN, ZETA_MAX = 1e-5, 0.95
-
-
-class PeakGuess(NamedTuple):
-    """A spectral peak as a starting point: its frequency (Hz) and a half-power damping guess."""
-
-    freq_hz: float
-    zeta: float
 
 
 class OEFit(NamedTuple):

@@ -30,7 +30,8 @@ import numpy as np
 from .data import Dataset
 from .excitation import SweepEstimate, estimate_sweep, klipper_normalisation
 from .significance import NoModeFound
-from .spectral import KAISER6_CORRELATION, Spectrum, block_kernel, smoothed_periodogram, welch_kernel, welch_psd
+from .spectral_model import Spectrum
+from .welch import KAISER6_CORRELATION, block_kernel, smoothed_periodogram, welch_kernel, welch_psd
 
 __all__ = ["ResonanceData", "resonance_data", "FIT_RESOLUTION"]
 

@@ -1,4 +1,5 @@
-"""What :func:`~posicast.identification.identify` returns: the modes, their 95 % intervals and the fit."""
+"""What :func:`~posicast.identification.identify` returns (the modes, their 95 % intervals and the fit), and the
+starting guess the fits share."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from ..modes import Mode
 from .significance import ModeTest
 
-__all__ = ["Interval", "Identification"]
+__all__ = ["Interval", "Identification", "PeakGuess"]
 
 
 class Interval(NamedTuple):
@@ -89,3 +90,10 @@ class Identification:
                          f"({self.covariance} intervals)")
         lines.extend("  note: " + n for n in self.notes)
         return "\n".join(lines)
+
+
+class PeakGuess(NamedTuple):
+    """A spectral peak as a starting point: its frequency (Hz) and a half-power damping guess."""
+
+    freq_hz: float
+    zeta: float
