@@ -31,11 +31,11 @@ recommendation is scored on the impulses the machine will run.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from .. import _validate as v
+from ..modes import Mode
 from .base import Firmware, Setting, ShaperType
 from .klipper import _EI2_A, _EI2_T, _EI3_A, _EI3_T, _ei2_legacy, _ei3_legacy, _ei_legacy, _mzv, _zv, _zvd
 
@@ -129,7 +129,7 @@ class RepRapFirmware(Firmware):
             "custom zv": ShaperType("custom", _zv, 5.72, 1000.0, 0.99, label="custom zv"),
         }
 
-    def extra_types(self, modes: list[Any]) -> list[ShaperType]:
+    def extra_types(self, modes: list[Mode]) -> list[ShaperType]:
         """ZV x ZV for the two main modes (4 impulses), scanned with their frequency ratio fixed."""
         if len(modes) < 2:
             return []

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy import optimize
 
 from .. import _validate as v
@@ -34,7 +35,7 @@ from ..shapers import Shaper
 from .data import Dataset, load_csv
 from .estimators import METHODS, identify
 from .results import Identification, Interval
-from .recommend import ModeBox, Recommendation, mode_boxes, optimum, recommend_setting
+from .recommend import Candidate, ModeBox, Recommendation, mode_boxes, optimum, recommend_setting
 from .resonance import ResonanceData, resonance_data
 from .significance import NoModeFound
 from .spectral import fit_spectrum
@@ -91,7 +92,7 @@ class Schedule:
     linear_residual: float
     lines: list[str] = field(default_factory=list)
 
-    def frequency(self, value: Any) -> Any:
+    def frequency(self, value: npt.ArrayLike) -> np.ndarray:
         """The fitted frequency at ``value``."""
         return self.c / np.sqrt(self.m0 + np.asarray(value, dtype=float))
 
@@ -191,7 +192,7 @@ class Calibration:
         def num(x: float) -> float | None:
             return None if x is None or not math.isfinite(x) else float(x)
 
-        def cand(c: Any) -> dict[str, Any]:
+        def cand(c: Candidate) -> dict[str, Any]:
             return {"type": c.setting.shaper_type.written, "freq_hz": num(c.setting.freq),
                     "damping": num(c.setting.damping), "worst_vibration": num(c.vibration),
                     "firmware_vibration": num(c.firmware_vibration), "smoothing_mm": num(c.smoothing),

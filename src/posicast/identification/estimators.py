@@ -39,7 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .. import _validate as v
-from ..modes import Mode
+from ..modes import Mode  # noqa: F401 (the doctest of identify uses it)
 from .arx import fit_arx
 from .decay import fit_decay
 from .fit_statistics import fit_percent, whiteness

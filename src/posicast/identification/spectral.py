@@ -404,45 +404,12 @@ def _mode_tests(model: SpectralModel, theta: np.ndarray, M_cur: np.ndarray, dev_
 
 def _report(model: SpectralModel, tested: _Tested) -> SpectralModes:
     """Intervals, shares and edge flags of the tested modes; broad and minor features become notes."""
-    theta, M_cur, comps, tests = tested.theta, tested.model_psd, tested.components, tested.tests
-    n = theta.size // 2
-    notes: list[str] = []
-    # covariance of the poles: Gauss-Newton of the weighted residual, scaled by dispersion x correlation
-    J = model.jacobian(theta)
-    JTJ = J.T @ J
-    try:
-        C = np.linalg.inv(JTJ) * tested.scale
-    except np.linalg.LinAlgError:
-        C = np.linalg.pinv(JTJ) * tested.scale
-    tq = float(stats.norm.ppf(0.975))
-    modes, ivs, edges, shares = [], [], [], []
-    total = float(np.sum(np.maximum(M_cur, 0.0)))
-    for k in range(n):
-        lw, z = theta[2 * k], theta[2 * k + 1]
-        sw = math.sqrt(max(C[2 * k, 2 * k], 0.0))
-        sz = math.sqrt(max(C[2 * k + 1, 2 * k + 1], 0.0))
-        m = Mode(math.exp(lw), float(z))
-        modes.append(m)
-        # an unresolved pole (singular curvature) gets an interval as wide as the band allows
-        w_lo, w_hi = math.log(math.pi * model.f[0]), math.log(4 * math.pi * model.f[-1])
-        ivs.append(((math.exp(max(lw - tq * sw, w_lo)), math.exp(min(lw + tq * sw, w_hi))),
-                    (max(z - tq * sz, 0.0), min(z + tq * sz, 0.999))))
-        edges.append(at_band_edge(m, model.f[0], model.f[-1], zeta_floor=ZETA_BOUNDS[0]))
-        shares.append(float(np.sum(np.maximum(comps[k], 0.0))) / max(total, 1e-300))
+    M_cur, comps, tests = tested.model_psd, tested.components, tested.tests
+    modes, ivs, edges, shares = _modes_and_intervals(model, tested)
     order = [int(i) for i in np.argsort([m.omega for m in modes])]
     fit = SpectralFit(model.f, model.P, M_cur, tested.background, [comps[i] for i in order], tested.dispersion,
                       tested.correlation)
-    broad = [i for i in order if modes[i].zeta >= BROAD_ZETA]
-    for i in broad:
-        notes.append(f"a broad feature at {modes[i].freq_hz:.1f} Hz (zeta {modes[i].zeta:.2f}) is part of the "
-                     "fitted background, not a resonance")
-    # a mode whose own peak stays under 1/20 of the spectrum's maximum cannot matter to a shaper (it is
-    # Klipper's threshold too): a feature of the fit (the slow sweep's lines, a ripple), not reported
-    top = float(np.max(M_cur))
-    minor = [i for i in order if i not in broad and float(np.max(comps[i])) < MINOR_SHARE * top]
-    for i in minor:
-        notes.append(f"a small peak at {modes[i].freq_hz:.1f} Hz (under {100 * MINOR_SHARE:.0f} % of the "
-                     "spectrum's maximum) is fitted but not reported")
+    broad, minor, notes = _background_features(modes, comps, order, M_cur)
     keep = [i for i in order if i not in broad and i not in minor]
     if not [i for i in keep if not edges[i]]:
         i = keep[-1] if keep else max(order, key=lambda j: float(np.max(comps[j])))
@@ -455,6 +422,61 @@ def _report(model: SpectralModel, tested: _Tested) -> SpectralModes:
         notes += _unresolved(model, modes[i], i, edges)
     return SpectralModes([modes[i] for i in keep], [ivs[i] for i in keep], [tests[i] for i in keep],
                          [edges[i] for i in keep], [shares[i] for i in keep], fit, notes)
+
+
+def _background_features(modes: list[Mode], comps: list[np.ndarray], order: list[int], M_cur: np.ndarray
+                         ) -> tuple[list[int], list[int], list[str]]:
+    """The fitted poles that are not reported: broad ones (background) and minor ones; and the notes saying so."""
+    notes: list[str] = []
+    broad = [i for i in order if modes[i].zeta >= BROAD_ZETA]
+    for i in broad:
+        notes.append(f"a broad feature at {modes[i].freq_hz:.1f} Hz (zeta {modes[i].zeta:.2f}) is part of the "
+                     "fitted background, not a resonance")
+    # a mode whose own peak stays under 1/20 of the spectrum's maximum cannot matter to a shaper (it is
+    # Klipper's threshold too): a feature of the fit (the slow sweep's lines, a ripple), not reported
+    top = float(np.max(M_cur))
+    minor = [i for i in order if i not in broad and float(np.max(comps[i])) < MINOR_SHARE * top]
+    for i in minor:
+        notes.append(f"a small peak at {modes[i].freq_hz:.1f} Hz (under {100 * MINOR_SHARE:.0f} % of the "
+                     "spectrum's maximum) is fitted but not reported")
+    return broad, minor, notes
+
+
+class _FittedModes(NamedTuple):
+    """Per fitted pole: the mode, its 95 % intervals, whether it leaves the band, its share of the power."""
+
+    modes: list[Mode]
+    intervals: list[tuple[tuple[float, float], tuple[float, float]]]
+    at_edge: list[bool]
+    shares: list[float]
+
+
+def _modes_and_intervals(model: SpectralModel, tested: _Tested) -> _FittedModes:
+    """Per fitted pole: the mode, its 95 % intervals, whether it leaves the band, and its share of the power."""
+    theta, M_cur, comps = tested.theta, tested.model_psd, tested.components
+    # covariance of the poles: Gauss-Newton of the weighted residual, scaled by dispersion x correlation
+    J = model.jacobian(theta)
+    JTJ = J.T @ J
+    try:
+        C = np.linalg.inv(JTJ) * tested.scale
+    except np.linalg.LinAlgError:
+        C = np.linalg.pinv(JTJ) * tested.scale
+    tq = float(stats.norm.ppf(0.975))
+    modes, ivs, edges, shares = [], [], [], []
+    total = float(np.sum(np.maximum(M_cur, 0.0)))
+    for k in range(theta.size // 2):
+        lw, z = theta[2 * k], theta[2 * k + 1]
+        sw = math.sqrt(max(C[2 * k, 2 * k], 0.0))
+        sz = math.sqrt(max(C[2 * k + 1, 2 * k + 1], 0.0))
+        m = Mode(math.exp(lw), float(z))
+        modes.append(m)
+        # an unresolved pole (singular curvature) gets an interval as wide as the band allows
+        w_lo, w_hi = math.log(math.pi * model.f[0]), math.log(4 * math.pi * model.f[-1])
+        ivs.append(((math.exp(max(lw - tq * sw, w_lo)), math.exp(min(lw + tq * sw, w_hi))),
+                    (max(z - tq * sz, 0.0), min(z + tq * sz, 0.999))))
+        edges.append(at_band_edge(m, model.f[0], model.f[-1], zeta_floor=ZETA_BOUNDS[0]))
+        shares.append(float(np.sum(np.maximum(comps[k], 0.0))) / max(total, 1e-300))
+    return _FittedModes(modes, ivs, edges, shares)
 
 
 def _unresolved(model: SpectralModel, mode: Mode, i: int, edges: list[bool]) -> list[str]:

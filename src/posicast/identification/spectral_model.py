@@ -85,22 +85,8 @@ class Spectrum:
     kernel: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        f = v.strict_real_array(self.freqs, "freqs")
-        P = v.strict_real_array(self.psd, "psd")
-        E = v.strict_real_array(self.excitation, "excitation")
-        if f.ndim != 1 or P.shape != f.shape or E.shape != f.shape or f.size < 4:
-            raise ValueError(f"freqs, psd and excitation must be 1-D of one length (at least 4), got {f.shape}, "
-                             f"{P.shape}, {E.shape}")
-        if np.any(np.diff(f) <= 0) or f[0] < 0:
-            raise ValueError("freqs must increase from >= 0 Hz")
-        if np.any(P < 0) or np.any(E < 0):
-            raise ValueError("psd and excitation must be >= 0")
-        try:
-            lo, hi = (v.real(b, "band") for b in self.band)
-        except (TypeError, ValueError):
-            raise ValueError(f"band must be two frequencies (low, high) in Hz, got {self.band!r}") from None
-        if not 0 <= lo < hi:
-            raise ValueError(f"band must satisfy 0 <= low < high, got ({lo:g}, {hi:g})")
+        f, P, E = _spectrum_arrays(self.freqs, self.psd, self.excitation)
+        lo, hi = _band(self.band)
         norm = None
         if self.normalisation is not None:
             norm = v.strict_real_array(self.normalisation, "normalisation")
@@ -117,6 +103,32 @@ class Spectrum:
         object.__setattr__(self, "excitation", E)
         object.__setattr__(self, "band", (lo, hi))
         object.__setattr__(self, "normalisation", norm)
+
+
+def _spectrum_arrays(freqs: object, psd: object, excitation: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Frequencies (increasing from >= 0 Hz), PSD and excitation (>= 0), 1-D of one length (at least 4)."""
+    f = v.strict_real_array(freqs, "freqs")
+    P = v.strict_real_array(psd, "psd")
+    E = v.strict_real_array(excitation, "excitation")
+    if f.ndim != 1 or P.shape != f.shape or E.shape != f.shape or f.size < 4:
+        raise ValueError(f"freqs, psd and excitation must be 1-D of one length (at least 4), got {f.shape}, "
+                         f"{P.shape}, {E.shape}")
+    if np.any(np.diff(f) <= 0) or f[0] < 0:
+        raise ValueError("freqs must increase from >= 0 Hz")
+    if np.any(P < 0) or np.any(E < 0):
+        raise ValueError("psd and excitation must be >= 0")
+    return f, P, E
+
+
+def _band(band: object) -> tuple[float, float]:
+    """Two frequencies ``0 <= low < high`` in Hz."""
+    try:
+        lo, hi = (v.real(b, "band") for b in band)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise ValueError(f"band must be two frequencies (low, high) in Hz, got {band!r}") from None
+    if not 0 <= lo < hi:
+        raise ValueError(f"band must satisfy 0 <= low < high, got ({lo:g}, {hi:g})")
+    return lo, hi
 
 
 class SpectralModel:
