@@ -285,3 +285,29 @@ def refuse_large(estimate: float, limit: float, what: str, change: str, unit: st
         return f"{x:.3g}{' ' + unit if unit else ''}"
 
     raise ValueError(f"{what} would need about {show(estimate)} (limit {show(limit)}): {change}")
+
+
+# --- ident
+
+
+def non_negative(value: Any, name: str) -> float:
+    """A finite real ``>= 0``.
+
+    >>> non_negative(0, "scv")
+    0.0
+    """
+    x = finite_real(value, name)
+    if x < 0:
+        raise ValueError(f"{name} must be >= 0, got {x:g}")
+    return x
+
+
+def instance(value: Any, name: str, cls: type | tuple[type, ...], what: str) -> Any:
+    """``value`` itself when it is a ``cls``; else TypeError ``"<name> must be <what>, got <type>"``.
+
+    >>> instance(1.5, "x", float, "a float")
+    1.5
+    """
+    if not isinstance(value, cls):
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+    return value

@@ -83,10 +83,8 @@ class Setting:
     damping: float
 
     def __post_init__(self) -> None:
-        if not isinstance(self.firmware, Firmware):
-            raise TypeError(f"firmware must be a posicast.firmware.Firmware, got {type(self.firmware).__name__}")
-        if not isinstance(self.shaper_type, ShaperType):
-            raise TypeError(f"shaper_type must be a ShaperType, got {type(self.shaper_type).__name__}")
+        v.instance(self.firmware, "firmware", Firmware, "a posicast.firmware.Firmware")
+        v.instance(self.shaper_type, "shaper_type", ShaperType, "a ShaperType")
         st = self.shaper_type
         f = v.real(self.freq, "freq")
         if not st.min_freq <= f <= st.max_freq:

@@ -227,9 +227,7 @@ class Klipper(Firmware):
         """``ei(v_tol=..)`` of Klipper master (April 2026 and later)."""
         if not self.parametric:
             raise ValueError(f"Klipper {self.version} has no parametric ei; use version='master'")
-        vtol = v.real(vtol, "vtol")
-        if not 0.0 < vtol < 0.2:
-            raise ValueError(f"v_tol must be in (0, 0.2), got {vtol:g}")
+        vtol = v.in_open_interval(vtol, "vtol", 0.0, 0.2)
         return ShaperType("ei", _ei_fit, 1.0, max_damping=0.4, params={"v": vtol}, label=f"ei(v_tol={vtol:g})",
                           tool_min_freq=29.0)
 

@@ -258,7 +258,6 @@ class Prusa(Firmware):
         """``M593 Y A<delta> M<grams>``: ``f = f0 + delta min(m / M, 1)`` with ``M74 W<m>``."""
         if not delta < 0:
             raise ValueError(f"Prusa's weight-adjust delta must be < 0 Hz, got {delta:g}")
-        if not mass_limit > 0:
-            raise ValueError(f"the mass limit must be > 0 g, got {mass_limit:g}")
+        mass_limit = v.positive(mass_limit, "mass_limit")
         return [f"M593 Y A{delta:.2f} M{mass_limit:.0f}"]
 

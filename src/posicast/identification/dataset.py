@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import _validate as v
+
 __all__ = ["Dataset"]
 
 
@@ -70,8 +72,7 @@ class Dataset:
 
     def column(self, name: str) -> np.ndarray:
         """The signal ``name`` (a key of ``columns``)."""
-        if not isinstance(name, str):
-            raise TypeError(f"name must be a str (a column name), got {type(name).__name__}")
+        v.instance(name, "name", str, "a str (a column name)")
         if name not in self.columns:
             raise ValueError(f"{self.path}: column {name!r} not found; columns are {', '.join(self.columns)}")
         return self.columns[name]
@@ -81,8 +82,7 @@ class Dataset:
         the projection of the three axes on their principal direction (mean removed)."""
         if axis in ("x", "y", "z"):
             return self.column(f"accel_{axis}")
-        if axis not in ("auto", "all"):
-            raise ValueError(f"axis must be 'x', 'y', 'z' or 'all', got {axis!r}")
+        v.choice(axis, "axis", ("x", "y", "z", "auto", "all"))
         A = np.column_stack([self.column(f"accel_{a}") for a in "xyz"])
         A = A - A.mean(axis=0)
         _, _, Vt = np.linalg.svd(A[:: max(1, A.shape[0] // 20000)], full_matrices=False)

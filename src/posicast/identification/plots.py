@@ -13,6 +13,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from .. import _validate as v
 from ..firmware import vibration_grid
 from ..firmware.klipper import KLIPPER_TEST_DAMPING
 from .calibration import Calibration
@@ -23,8 +24,7 @@ __all__ = ["fit_plot", "calibration_plot"]
 
 def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Axes | None = None) -> tuple[Figure, Axes]:
     """Spectrum (PSD fits) or time series (OE-type fits) with the model; returns ``(fig, ax)``."""
-    if not isinstance(ident, Identification):
-        raise TypeError("ident must be an Identification")
+    v.instance(ident, "ident", Identification, "an Identification")
     fig, ax = plt.subplots(figsize=(7, 3.5)) if ax is None else (ax.figure, ax)
     if ident.freqs is not None and ident.spectrum is not None:
         ax.semilogy(ident.freqs, ident.spectrum, lw=0.8, label="measured PSD")
@@ -54,8 +54,7 @@ def calibration_plot(cal: Calibration) -> Figure:
     scores on (grey) and the vibration left by each recommended setting (solid) and by
     the firmware tool's own pick (dashed), worst over damping 0.075-0.15.
     """
-    if not isinstance(cal, Calibration):
-        raise TypeError("cal must be a Calibration")
+    v.instance(cal, "cal", Calibration, "a Calibration")
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     _spectra_panel(a1, cal, colours)

@@ -192,10 +192,7 @@ class Recommendation:
 
 
 def _margin(margin: Any) -> float:
-    margin = v.real(margin, "margin")
-    if not 0.0 <= margin < 0.5:
-        raise ValueError(f"margin must be in [0, 0.5), got {margin:g}")
-    return margin
+    return v.real_in_range(margin, "margin", 0.0, 0.5, hi_open=True)
 
 
 def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
@@ -212,12 +209,9 @@ def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -
     >>> 0 < a < b
     True
     """
-    if not isinstance(shaper, Shaper):
-        raise TypeError(f"shaper must be a posicast Shaper, got {type(shaper).__name__}")
+    v.instance(shaper, "shaper", Shaper, "a posicast Shaper")
     accel = v.positive(accel, "accel")
-    scv = v.real(scv, "scv")
-    if scv < 0:
-        raise ValueError(f"scv must be >= 0, got {scv:g}")
+    scv = v.non_negative(scv, "scv")
     if shaper.distributed or shaper.continuous is not None:
         return float("nan")
     T, A = shaper.impulses
@@ -368,8 +362,7 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
     extra_types : sequence of ShaperType
         More types to try (Klipper master's parametric ``mzv(n, t)``, ``ei(v_tol)``).
     """
-    if not isinstance(fw, Firmware):
-        raise TypeError(f"fw must be a posicast.firmware.Firmware, got {type(fw).__name__}")
+    v.instance(fw, "fw", Firmware, "a posicast.firmware.Firmware")
     boxes = _boxes_arg(boxes)
     if axis is not None:
         axis = v.choice(axis, "axis", ("x", "y", "z"))

@@ -272,8 +272,7 @@ def fit_spectrum(spec: Spectrum, n_modes: int | str = "auto", *, max_modes: int 
     :class:`~posicast.identification.NoModeFound` when no mode passes its test, or the only
     peaks are a rise at the band edge or broad background.
     """
-    if not isinstance(spec, Spectrum):
-        raise TypeError(f"spec must be a Spectrum, got {type(spec).__name__}")
+    v.instance(spec, "spec", Spectrum, "a Spectrum")
     if n_modes != "auto":
         n_modes = v.integer_in_range(n_modes, "n_modes", 1, MAX_MODES)
     max_modes = v.integer_in_range(max_modes, "max_modes", 1, MAX_MODES)
