@@ -1,6 +1,9 @@
-"""Estimators of lightly damped modes (omega, zeta) with 95 % confidence intervals.
+"""The front door of identification: :func:`identify` checks the signals and runs one method.
 
-Methods of :func:`identify`:
+Estimators of lightly damped modes (omega, zeta) with 95 % confidence intervals; each
+method lives in its own module (:mod:`.output_error`, :mod:`.arx`, :mod:`.frequency_domain`,
+:mod:`.decay`, :mod:`.spectral`), the result types in :mod:`.results` and the
+intervals and whiteness in :mod:`.fit_statistics`.  Methods of :func:`identify`:
 
 ``"oe"`` (default)
     Output-error fit of a continuous-time modal model by variable projection.
@@ -28,7 +31,8 @@ Methods of :func:`identify`:
     on the record, then the OE refinement of the free response.
 ``"psd"``
     Output-only (input not recorded, e.g. a Klipper resonance test): Welch
-    PSD fitted by a sum of modal power peaks on a smooth background.
+    PSD (:mod:`.welch`) fitted by a sum of modal power peaks on a smooth
+    background (:mod:`.spectral_model`, :mod:`.spectral`).
 """
 
 from __future__ import annotations
