@@ -162,7 +162,7 @@ class Calibration:
             assert fr.identification is not None
             out.append(head)
             ident = fr.identification
-            shares = ident.amplitudes if len(ident.amplitudes) == len(ident.modes) else [None] * len(ident.modes)
+            shares = ident.shares if len(ident.shares) == len(ident.modes) else [None] * len(ident.modes)
             for m, iv, sh, edge in zip(ident.modes, ident.intervals, shares,
                                        ident.at_edge or [False] * len(ident.modes)):
                 out.append(f"  mode {m.freq_hz:7.2f} Hz [{iv.freq_hz[0]:.2f}, {iv.freq_hz[1]:.2f}]  zeta {m.zeta:.3f} "
@@ -230,7 +230,7 @@ def identify_resonances(rd: ResonanceData, n_modes: int | str = "auto", progress
     """Identify the modes of one resonance test (its fit spectrum), as an :class:`Identification`."""
     r = fit_spectrum(rd.spectrum, n_modes, progress=progress)
     ident = Identification(r.modes, [Interval(*iv) for iv in r.intervals], "psd", covariance="whittle",
-                           y_fit=r.fit.model, freqs=r.fit.freqs, spectrum=r.fit.psd, amplitudes=r.shares,
+                           y_fit=r.fit.model, freqs=r.fit.freqs, spectrum=r.fit.psd, shares=r.shares,
                            tests=r.tests, at_edge=r.at_edge,
                            notes=[f"{rd.spectrum.source}: fitted on {rd.spectrum.band[0]:.1f}-"
                                   f"{rd.spectrum.band[1]:.1f} Hz, excitation ~ f^2 (Klipper's sweep)"] + r.notes)
@@ -332,7 +332,7 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         raise NoModeFound(f"no resonance found: {msgs}" if len(files) > 1 else str(files[0].no_mode))
     notes = _default_axis(good)
     boxes_of = {id(fr): mode_boxes(fr.identification.modes, fr.identification.intervals,  # type: ignore[union-attr]
-                                   fr.identification.amplitudes, margin) for fr in good}  # type: ignore[union-attr]
+                                   fr.identification.shares, margin) for fr in good}  # type: ignore[union-attr]
     recs = _recommendations(fws, good, boxes_of, vtol=vtol, max_smoothing=max_smoothing, margin=margin,
                             slack=slack, say=say)
     all_boxes = [b for fr in good for b in boxes_of[id(fr)]]
@@ -451,7 +451,7 @@ def _schedule(files: list[FileResult], fws: list[Firmware]) -> Schedule | None:
         if not fr.label or fr.identification is None:
             continue
         ident = fr.identification
-        w = ident.amplitudes or [1.0] * len(ident.modes)
+        w = ident.shares or [1.0] * len(ident.modes)
         dom = ident.modes[int(np.argmax(w))]
         pts.append((fr.label[var], dom.freq_hz, fr.axis))
     if len(pts) < 2:

@@ -259,6 +259,6 @@ def _fit_psd(y: np.ndarray, fs: float, n_modes: int | str, *, band: Any, excitat
     r = fit_spectrum(spec, n_modes)
     return Identification(r.modes, [Interval(*iv) for iv in r.intervals], "psd", float("nan"), float("nan"),
                           "whittle", r.fit.model, None, fs, freqs=r.fit.freqs, spectrum=r.fit.psd,
-                          amplitudes=r.shares, tests=r.tests, at_edge=r.at_edge,
+                          shares=r.shares, tests=r.tests, at_edge=r.at_edge,
                           notes=[f"output-only PSD fit on [{lo:.1f}, {hi:.1f}] Hz, excitation ~ f^{slope:g}"]
                           + r.notes)

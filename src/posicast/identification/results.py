@@ -4,6 +4,7 @@ starting guess the fits share."""
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -59,6 +60,8 @@ class Identification:
         Model output (``psd``: model PSD on ``freqs``).
     order_scores : dict
         BIC per number of modes when the order was chosen automatically.
+    shares : list of float
+        ``psd``: each mode's share of the fitted spectrum's power (empty for the other methods).
     notes : list of str
     """
 
@@ -74,10 +77,16 @@ class Identification:
     order_scores: dict[int, float] = field(default_factory=dict)
     freqs: np.ndarray | None = None
     spectrum: np.ndarray | None = None
-    amplitudes: list[float] = field(default_factory=list)
+    shares: list[float] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     tests: list[ModeTest] = field(default_factory=list)
     at_edge: list[bool] = field(default_factory=list)
+
+    @property
+    def amplitudes(self) -> list[float]:
+        """Deprecated name of :attr:`shares` ("amplitudes" are a shaper's impulse amplitudes)."""
+        warnings.warn("Identification.amplitudes is now Identification.shares", FutureWarning, stacklevel=2)
+        return self.shares
 
     def summary(self) -> str:
         lines = [f"method {self.method}: {len(self.modes)} mode(s)"]
