@@ -1259,7 +1259,7 @@ def _cli_owner(argv: list[str], exc: BaseException | None, err: str) -> str:
     if m:
         return owner_of(str(PKG_DIR / m.group(1)))
     if argv[0] in ("identify", "calibrate"):
-        return owner_of(str(PKG_DIR / "identify" / "estimators.py"))
+        return owner_of(str(PKG_DIR / "identification" / "estimators.py"))
     return OWNERS[-1][1]
 
 

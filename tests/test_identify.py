@@ -11,7 +11,7 @@ import posicast
 from posicast import Mode, design
 from posicast.cli import main
 from posicast.identification import klipper_smoothing, load_csv, whiteness
-from posicast.identification.estimators import _radius_from_bandwidth, resonator_bandwidth
+from posicast.identification.frequency_domain import _radius_from_bandwidth, resonator_bandwidth
 from posicast.testing import klipper_log, synthetic
 from posicast.testing import simulate_modes as simulate
 from posicast_reports.identification_report import SEED_MODE, trial_stats

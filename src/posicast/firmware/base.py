@@ -22,6 +22,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .. import _validate as v
+from ..modes import Mode
 from ..shapers import Shaper
 
 __all__ = ["ShaperType", "Setting", "Firmware", "vibration_grid", "smoothing_offsets"]
@@ -82,10 +83,8 @@ class Setting:
     damping: float
 
     def __post_init__(self) -> None:
-        if not isinstance(self.firmware, Firmware):
-            raise TypeError(f"firmware must be a posicast.firmware.Firmware, got {type(self.firmware).__name__}")
-        if not isinstance(self.shaper_type, ShaperType):
-            raise TypeError(f"shaper_type must be a ShaperType, got {type(self.shaper_type).__name__}")
+        v.instance_of(self.firmware, Firmware, "firmware", "a posicast.firmware.Firmware")
+        v.instance_of(self.shaper_type, ShaperType, "shaper_type", "a ShaperType")
         st = self.shaper_type
         f = v.real(self.freq, "freq")
         if not st.min_freq <= f <= st.max_freq:
@@ -137,7 +136,7 @@ class Firmware:
     def types(self) -> dict[str, ShaperType]:
         raise NotImplementedError
 
-    def extra_types(self, modes: list[Any]) -> list[ShaperType]:
+    def extra_types(self, modes: list[Mode]) -> list[ShaperType]:
         """Types that depend on the machine's modes (a custom shaper for two modes); none by default."""
         return []
 
@@ -157,14 +156,14 @@ class Firmware:
     # Klipper's smoothing model (shaper_calibrate.py: the toolhead's offset from the commanded
     # path after a 90 or 180 degree turn at ``accel`` and square corner velocity ``scv``).  It is
     # the only published measure; the other firmwares use it too, for comparison.
-    def smoothing(self, A: np.ndarray, T: np.ndarray, accel: float | None = None) -> Any:
+    def smoothing(self, A: np.ndarray, T: np.ndarray, accel: float | None = None) -> float | np.ndarray:
         """Klipper's smoothing (mm) of impulses ``(A, T)``; rows of a 2-D ``T`` give an array."""
         c1, c2, c3 = smoothing_offsets(A, T)
         a = self.smoothing_accel if accel is None else accel
         out = np.maximum(math.sqrt(2.0) * (self.scv * np.asarray(c1) + 0.5 * a * np.asarray(c2)), 0.5 * a * np.asarray(c3))
         return float(out) if np.ndim(out) == 0 else out
 
-    def max_accel(self, A: np.ndarray, T: np.ndarray) -> Any:
+    def max_accel(self, A: np.ndarray, T: np.ndarray) -> float | np.ndarray:
         """Largest acceleration whose smoothing stays at :attr:`target_smoothing` (exact: it is linear in accel)."""
         c1, c2, c3 = (np.asarray(c, dtype=float) for c in smoothing_offsets(A, T))
         tgt = self.target_smoothing
@@ -176,7 +175,7 @@ class Firmware:
         return float(out) if out.ndim == 0 else out
 
 
-def smoothing_offsets(A: np.ndarray, T: np.ndarray) -> tuple[Any, Any, Any]:
+def smoothing_offsets(A: np.ndarray, T: np.ndarray) -> tuple[float | np.ndarray, float | np.ndarray, float | np.ndarray]:
     """``(sum_{T >= ts} A (T - ts), sum_{T >= ts} A (T - ts)^2, sum A (T - ts)^2)`` over ``sum A``.
 
     ``ts`` is the shaper's centre ``sum A T / sum A``; Klipper's 90-degree offset is

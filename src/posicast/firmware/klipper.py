@@ -227,9 +227,7 @@ class Klipper(Firmware):
         """``ei(v_tol=..)`` of Klipper master (April 2026 and later)."""
         if not self.parametric:
             raise ValueError(f"Klipper {self.version} has no parametric ei; use version='master'")
-        vtol = v.real(vtol, "vtol")
-        if not 0.0 < vtol < 0.2:
-            raise ValueError(f"v_tol must be in (0, 0.2), got {vtol:g}")
+        vtol = v.in_open_interval(vtol, "vtol", 0.0, 0.2)
         return ShaperType("ei", _ei_fit, 1.0, max_damping=0.4, params={"v": vtol}, label=f"ei(v_tol={vtol:g})",
                           tool_min_freq=29.0)
 
@@ -334,28 +332,7 @@ def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.nda
         st = all_types[name]
         if damping > st.max_damping:
             continue
-        freqs = np.arange(st.tool_min_freq or max(st.min_freq, 20.0), min(max_shaper_freq, st.max_freq), step)
-        res = klipper_scan(fw, st, damping, freqs, datasets)  # low to high
-        # best vibration, scanning from high to low frequency (ties keep the higher one); with
-        # max_smoothing the scan stops at the first frequency that smooths more, and the best so far is
-        # returned without the score-based selection (fit_shaper's early return)
-        best_res, cut = None, False
-        scanned = []
-        for r in res[::-1]:
-            if max_smoothing is not None and r.smoothing > max_smoothing and best_res is not None:
-                cut = True
-                break
-            scanned.append(r)
-            if best_res is None or r.vibrations < best_res.vibrations:
-                best_res = r
-        assert best_res is not None
-        chosen = best_res
-        slack = 0.0005 if master else 0.0  # Kalico / v0.13: within 1.1 x, no absolute slack
-        if not cut:
-            for r in scanned:
-                if r.vibrations < best_res.vibrations * 1.1 + slack and r.score < chosen.score:
-                    chosen = r
-        res = scanned[::-1]
+        chosen, res = _fit_shaper(fw, st, damping, datasets, max_smoothing, max_shaper_freq, step, master)
         picks[name] = chosen
         if best is None or chosen.score * 1.2 < best.score or (
                 chosen.score * 1.05 < best.score and chosen.smoothing * 1.1 < best.smoothing):
@@ -367,8 +344,41 @@ def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.nda
                     picks[name] = r
     assert best is not None
     if master and best.setting.shaper_type.name == "zv":
-        for name in types:
-            if name != "zv" and name in picks and picks[name].vibrations * 1.1 < best.vibrations:
-                best = picks[name]
-                break
+        best = _avoid_zv(best, picks, types)
     return best, picks
+
+
+def _avoid_zv(best: KlipperPick, picks: dict[str, KlipperPick], types: tuple[str, ...]) -> KlipperPick:
+    """Klipper master's zv rule: the first other type that vibrates 1.1 x less than the zv pick replaces it."""
+    for name in types:
+        if name != "zv" and name in picks and picks[name].vibrations * 1.1 < best.vibrations:
+            return picks[name]
+    return best
+
+
+def _fit_shaper(fw: Firmware, st: ShaperType, damping: float, datasets: list[tuple[np.ndarray, np.ndarray]],
+                max_smoothing: float | None, max_shaper_freq: float, step: float, master: bool
+                ) -> tuple[KlipperPick, list[KlipperPick]]:
+    """One type's pick (Klipper's ``fit_shaper``) and the frequencies it scanned, low to high."""
+    freqs = np.arange(st.tool_min_freq or max(st.min_freq, 20.0), min(max_shaper_freq, st.max_freq), step)
+    res = klipper_scan(fw, st, damping, freqs, datasets)  # low to high
+    # best vibration, scanning from high to low frequency (ties keep the higher one); with
+    # max_smoothing the scan stops at the first frequency that smooths more, and the best so far is
+    # returned without the score-based selection (fit_shaper's early return)
+    best_res, cut = None, False
+    scanned = []
+    for r in res[::-1]:
+        if max_smoothing is not None and r.smoothing > max_smoothing and best_res is not None:
+            cut = True
+            break
+        scanned.append(r)
+        if best_res is None or r.vibrations < best_res.vibrations:
+            best_res = r
+    assert best_res is not None
+    chosen = best_res
+    slack = 0.0005 if master else 0.0  # Kalico / v0.13: within 1.1 x, no absolute slack
+    if not cut:
+        for r in scanned:
+            if r.vibrations < best_res.vibrations * 1.1 + slack and r.score < chosen.score:
+                chosen = r
+    return chosen, scanned[::-1]

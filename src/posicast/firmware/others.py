@@ -31,11 +31,11 @@ recommendation is scored on the impulses the machine will run.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from .. import _validate as v
+from ..modes import Mode
 from .base import Firmware, Setting, ShaperType
 from .klipper import _EI2_A, _EI2_T, _EI3_A, _EI3_T, _ei2_legacy, _ei3_legacy, _ei_legacy, _mzv, _zv, _zvd
 
@@ -129,7 +129,7 @@ class RepRapFirmware(Firmware):
             "custom zv": ShaperType("custom", _zv, 5.72, 1000.0, 0.99, label="custom zv"),
         }
 
-    def extra_types(self, modes: list[Any]) -> list[ShaperType]:
+    def extra_types(self, modes: list[Mode]) -> list[ShaperType]:
         """ZV x ZV for the two main modes (4 impulses), scanned with their frequency ratio fixed."""
         if len(modes) < 2:
             return []
@@ -258,7 +258,6 @@ class Prusa(Firmware):
         """``M593 Y A<delta> M<grams>``: ``f = f0 + delta min(m / M, 1)`` with ``M74 W<m>``."""
         if not delta < 0:
             raise ValueError(f"Prusa's weight-adjust delta must be < 0 Hz, got {delta:g}")
-        if not mass_limit > 0:
-            raise ValueError(f"the mass limit must be > 0 g, got {mass_limit:g}")
+        mass_limit = v.positive(mass_limit, "mass_limit")
         return [f"M593 Y A{delta:.2f} M{mass_limit:.0f}"]
 

@@ -22,9 +22,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, NamedTuple, Sequence
 
 import numpy as np
+import numpy.typing as npt
 from scipy import optimize
 
 from .. import _validate as v
@@ -32,8 +33,9 @@ from ..firmware import FIRMWARES, Firmware, Klipper, MarlinFT, Prusa, RepRapFirm
 from ..modes import Mode
 from ..shapers import Shaper
 from .data import Dataset, load_csv
-from .estimators import METHODS, Identification, Interval, identify
-from .recommend import ModeBox, Recommendation, mode_boxes, optimum, recommend_setting
+from .estimators import METHODS, identify
+from .results import Identification, Interval
+from .recommend import Candidate, ModeBox, Recommendation, mode_boxes, optimum, recommend_setting
 from .resonance import ResonanceData, resonance_data
 from .significance import NoModeFound
 from .spectral import fit_spectrum
@@ -90,7 +92,7 @@ class Schedule:
     linear_residual: float
     lines: list[str] = field(default_factory=list)
 
-    def frequency(self, value: Any) -> Any:
+    def frequency(self, value: npt.ArrayLike) -> np.ndarray:
         """The fitted frequency at ``value``."""
         return self.c / np.sqrt(self.m0 + np.asarray(value, dtype=float))
 
@@ -160,7 +162,7 @@ class Calibration:
             assert fr.identification is not None
             out.append(head)
             ident = fr.identification
-            shares = ident.amplitudes if len(ident.amplitudes) == len(ident.modes) else [None] * len(ident.modes)
+            shares = ident.shares if len(ident.shares) == len(ident.modes) else [None] * len(ident.modes)
             for m, iv, sh, edge in zip(ident.modes, ident.intervals, shares,
                                        ident.at_edge or [False] * len(ident.modes)):
                 out.append(f"  mode {m.freq_hz:7.2f} Hz [{iv.freq_hz[0]:.2f}, {iv.freq_hz[1]:.2f}]  zeta {m.zeta:.3f} "
@@ -190,7 +192,7 @@ class Calibration:
         def num(x: float) -> float | None:
             return None if x is None or not math.isfinite(x) else float(x)
 
-        def cand(c: Any) -> dict[str, Any]:
+        def cand(c: Candidate) -> dict[str, Any]:
             return {"type": c.setting.shaper_type.written, "freq_hz": num(c.setting.freq),
                     "damping": num(c.setting.damping), "worst_vibration": num(c.vibration),
                     "firmware_vibration": num(c.firmware_vibration), "smoothing_mm": num(c.smoothing),
@@ -228,7 +230,7 @@ def identify_resonances(rd: ResonanceData, n_modes: int | str = "auto", progress
     """Identify the modes of one resonance test (its fit spectrum), as an :class:`Identification`."""
     r = fit_spectrum(rd.spectrum, n_modes, progress=progress)
     ident = Identification(r.modes, [Interval(*iv) for iv in r.intervals], "psd", covariance="whittle",
-                           y_fit=r.fit.model, freqs=r.fit.freqs, spectrum=r.fit.psd, amplitudes=r.shares,
+                           y_fit=r.fit.model, freqs=r.fit.freqs, spectrum=r.fit.psd, shares=r.shares,
                            tests=r.tests, at_edge=r.at_edge,
                            notes=[f"{rd.spectrum.source}: fitted on {rd.spectrum.band[0]:.1f}-"
                                   f"{rd.spectrum.band[1]:.1f} Hz, excitation ~ f^2 (Klipper's sweep)"] + r.notes)
@@ -313,16 +315,58 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
     NoModeFound
         When no file shows a resonance.
     """
-    if isinstance(paths, (str, Path, Dataset)):
-        paths = [paths]
-    if not isinstance(paths, (list, tuple)):
-        raise TypeError(f"paths must be a file path or a list of them, got {type(paths).__name__}")
-    paths = list(paths)
-    if not paths:
-        raise ValueError("no files given")
-    for p in paths:
-        if not isinstance(p, (str, Path, Dataset)):
-            raise TypeError(f"paths must be file paths (or loaded Datasets), got {type(p).__name__}")
+    paths = _path_list(paths)
+    axis, method, n_modes, margin, slack = _check_options(axis, input, output, method, n_modes, margin, slack,
+                                                          progress)
+    fws = _firmwares(firmware, klipper_version)
+    labels = _labels(at, len(paths))
+    if vtol is not None:
+        vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
+    if max_smoothing is not None:
+        max_smoothing = v.positive(max_smoothing, "max_smoothing")
+    say = progress or (lambda s: None)
+    files = [_identify_file(item, lab, axis, input, output, method, n_modes, say) for item, lab in zip(paths, labels)]
+    good = [fr for fr in files if fr.identification is not None]
+    if not good:
+        msgs = "; ".join(f"{Path(fr.path).name}: {fr.no_mode}" for fr in files)
+        raise NoModeFound(f"no resonance found: {msgs}" if len(files) > 1 else str(files[0].no_mode))
+    notes = _default_axis(good)
+    boxes_of = {id(fr): mode_boxes(fr.identification.modes, fr.identification.intervals,  # type: ignore[union-attr]
+                                   fr.identification.shares, margin) for fr in good}  # type: ignore[union-attr]
+    recs = _recommendations(fws, good, boxes_of, vtol=vtol, max_smoothing=max_smoothing, margin=margin,
+                            slack=slack, say=say)
+    all_boxes = [b for fr in good for b in boxes_of[id(fr)]]
+    S, worst, label = optimum(all_boxes, vtol=0.05 if vtol is None else vtol)
+    schedule = _schedule(good, fws) if any(fr.label for fr in good) else None
+    for fr in files:
+        if fr.no_mode:
+            notes.append(f"{Path(fr.path).name}: {fr.no_mode}")
+    return Calibration(files, recs, S, worst, label, schedule, notes)
+
+
+def _default_axis(files: list[FileResult]) -> list[str]:
+    """Files whose name gives no axis are taken as x: set it, and say so."""
+    unknown = [fr for fr in files if fr.axis is None]
+    if not unknown:
+        return []
+    for fr in unknown:
+        fr.axis = "x"
+    return ["the axis of " + ", ".join(Path(fr.path).name for fr in unknown) +
+            " is not in the file name: taken as x (use --axis)"]
+
+
+class _Options(NamedTuple):
+    """The checked options of :func:`calibrate` that concern every file."""
+
+    axis: str | None
+    method: str | None
+    n_modes: int | str
+    margin: float
+    slack: float
+
+
+def _check_options(axis: object, input: object, output: object, method: object, n_modes: object, margin: object,
+                   slack: object, progress: object) -> _Options:
     if axis is not None:
         axis = v.choice(axis, "axis", ("x", "y", "z"))
     for name, col in (("input", input), ("output", output)):
@@ -332,57 +376,17 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         method = v.choice(method, "method", METHODS)
     if n_modes != "auto":
         n_modes = v.integer(n_modes, "n_modes", 1)
-    margin = v.real(margin, "margin")
-    if not 0.0 <= margin < 0.5:
-        raise ValueError(f"margin must be in [0, 0.5), got {margin:g}")
-    slack = v.real(slack, "slack")
-    if not 0.0 <= slack <= 0.2:
-        raise ValueError(f"slack must be in [0, 0.2], got {slack:g}")
+    margin = v.real_in_range(margin, "margin", 0.0, 0.5, hi_open=True)
+    slack = v.real_in_range(slack, "slack", 0.0, 0.2)
     if progress is not None and not callable(progress):
         raise TypeError("progress must be a callable taking a str, or None")
-    fws = _firmwares(firmware, klipper_version)
-    labels = _labels(at, len(paths))
-    if vtol is not None:
-        vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
-    if max_smoothing is not None:
-        max_smoothing = v.positive(max_smoothing, "max_smoothing")
-    say = progress or (lambda s: None)
-    files: list[FileResult] = []
-    notes: list[str] = []
-    for item, lab in zip(paths, labels):
-        path = item.path if isinstance(item, Dataset) else str(item)
-        say(f"reading {Path(path).name}")
-        ds = item if isinstance(item, Dataset) else load_csv(item)
-        if ds.kind in ("klipper_raw", "klipper_psd", "rrf_accelerometer"):  # the last one is refused, with a way
-            rd = resonance_data(ds, axis)
-            fr = FileResult(str(path), rd.axis, rd.kind, resonance=rd, label=lab)
-            say(f"identifying modes in {Path(path).name} ({rd.spectrum.band[0]:.0f}-{rd.spectrum.band[1]:.0f} Hz)")
-            try:
-                fr.identification = identify_resonances(rd, n_modes, progress=say)
-            except NoModeFound as exc:
-                fr.no_mode = str(exc)
-        else:
-            if input is None or output is None:
-                raise ValueError(f"{path}: not a Klipper file; give the input and output columns (--input, --output)")
-            fr = FileResult(str(path), axis, "csv", label=lab)
-            try:
-                fr.identification = identify(ds.t, ds.column(input), ds.column(output), n_modes=n_modes,
-                                             method=method or "oe")
-            except NoModeFound as exc:
-                fr.no_mode = str(exc)
-        files.append(fr)
-    good = [fr for fr in files if fr.identification is not None]
-    if not good:
-        msgs = "; ".join(f"{Path(fr.path).name}: {fr.no_mode}" for fr in files)
-        raise NoModeFound(f"no resonance found: {msgs}" if len(files) > 1 else str(files[0].no_mode))
-    unknown = [fr for fr in good if fr.axis is None]
-    if unknown:
-        notes.append("the axis of " + ", ".join(Path(fr.path).name for fr in unknown) +
-                     " is not in the file name: taken as x (use --axis)")
-        for fr in unknown:
-            fr.axis = "x"
-    boxes_of = {id(fr): mode_boxes(fr.identification.modes, fr.identification.intervals,  # type: ignore[union-attr]
-                                   fr.identification.amplitudes, margin) for fr in good}  # type: ignore[union-attr]
+    return _Options(axis, method, n_modes, margin, slack)  # type: ignore[arg-type]
+
+
+def _recommendations(fws: list[Firmware], good: list[FileResult], boxes_of: dict[int, list[ModeBox]], *,
+                     vtol: float | None, max_smoothing: float | None, margin: float, slack: float,
+                     say: Progress) -> list[Recommendation]:
+    """One recommendation per firmware and axis (RepRapFirmware: one over every axis), over the files' mode boxes."""
     recs: list[Recommendation] = []
     axes = sorted({fr.axis for fr in good})  # type: ignore[type-var]
     for fw in fws:
@@ -395,13 +399,49 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
             say(f"searching {fw.name} settings" + (f" for axis {ax}" if ax else ""))
             recs.append(recommend_setting(fw, boxes, spectra, vtol=vtol, max_smoothing=max_smoothing, axis=ax,
                                           margin=margin, slack=slack))
-    all_boxes = [b for fr in good for b in boxes_of[id(fr)]]
-    S, worst, label = optimum(all_boxes, vtol=0.05 if vtol is None else vtol)
-    schedule = _schedule(good, fws) if any(fr.label for fr in good) else None
-    for fr in files:
-        if fr.no_mode:
-            notes.append(f"{Path(fr.path).name}: {fr.no_mode}")
-    return Calibration(files, recs, S, worst, label, schedule, notes)
+    return recs
+
+
+def _path_list(paths: object) -> list[str | Path | Dataset]:
+    """``paths`` as a non-empty list of file paths or loaded Datasets."""
+    if isinstance(paths, (str, Path, Dataset)):
+        paths = [paths]
+    if not isinstance(paths, (list, tuple)):
+        raise TypeError(f"paths must be a file path or a list of them, got {type(paths).__name__}")
+    out = list(paths)
+    if not out:
+        raise ValueError("no files given")
+    for p in out:
+        if not isinstance(p, (str, Path, Dataset)):
+            raise TypeError(f"paths must be file paths (or loaded Datasets), got {type(p).__name__}")
+    return out
+
+
+def _identify_file(item: str | Path | Dataset, label: dict[str, float], axis: str | None, input: str | None,
+                   output: str | None, method: str | None, n_modes: int | str, say: Progress) -> FileResult:
+    """Read one file and identify its modes: a resonance test's spectrum, or input/output columns by
+    :func:`~posicast.identification.identify`; a file without a mode keeps the reason in ``no_mode``."""
+    path = item.path if isinstance(item, Dataset) else str(item)
+    say(f"reading {Path(path).name}")
+    ds = item if isinstance(item, Dataset) else load_csv(item)
+    if ds.kind in ("klipper_raw", "klipper_psd", "rrf_accelerometer"):  # the last one is refused, with a way
+        rd = resonance_data(ds, axis)
+        fr = FileResult(str(path), rd.axis, rd.kind, resonance=rd, label=label)
+        say(f"identifying modes in {Path(path).name} ({rd.spectrum.band[0]:.0f}-{rd.spectrum.band[1]:.0f} Hz)")
+        try:
+            fr.identification = identify_resonances(rd, n_modes, progress=say)
+        except NoModeFound as exc:
+            fr.no_mode = str(exc)
+        return fr
+    if input is None or output is None:
+        raise ValueError(f"{path}: not a Klipper file; give the input and output columns (--input, --output)")
+    fr = FileResult(str(path), axis, "csv", label=label)
+    try:
+        fr.identification = identify(ds.t, ds.column(input), ds.column(output), n_modes=n_modes,
+                                     method=method or "oe")
+    except NoModeFound as exc:
+        fr.no_mode = str(exc)
+    return fr
 
 
 def _schedule(files: list[FileResult], fws: list[Firmware]) -> Schedule | None:
@@ -411,7 +451,7 @@ def _schedule(files: list[FileResult], fws: list[Firmware]) -> Schedule | None:
         if not fr.label or fr.identification is None:
             continue
         ident = fr.identification
-        w = ident.amplitudes or [1.0] * len(ident.modes)
+        w = ident.shares or [1.0] * len(ident.modes)
         dom = ident.modes[int(np.argmax(w))]
         pts.append((fr.label[var], dom.freq_hz, fr.axis))
     if len(pts) < 2:

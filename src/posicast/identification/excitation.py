@@ -94,19 +94,16 @@ class ResonanceTest:
     sweeping_period: float = 1.2
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {', '.join(METHODS)}; got {self.method!r}")
+        v.choice(self.method, "method", METHODS)
         lo = v.positive(self.min_freq, "min_freq")
         hi = v.positive(self.max_freq, "max_freq")
         if not 1.0 <= lo < hi <= 1000.0:
             raise ValueError(f"need 1 <= min_freq < max_freq <= 1000 Hz (Klipper: min_freq >= 1), got {lo:g} and "
                              f"{hi:g}")
-        rate = v.positive(self.hz_per_sec, "hz_per_sec")
-        if not 1e-3 <= rate <= 100.0:
-            raise ValueError(f"hz_per_sec must be in [0.001, 100], got {rate:g}")
+        v.real_in_range(self.hz_per_sec, "hz_per_sec", 1e-3, 100.0)
         v.positive(self.accel_per_hz, "accel_per_hz")
-        if v.real(self.sweeping_accel, "sweeping_accel") < 0 or v.real(self.sweeping_period, "sweeping_period") < 0:
-            raise ValueError("sweeping_accel and sweeping_period must be >= 0")
+        v.nonnegative(self.sweeping_accel, "sweeping_accel")
+        v.nonnegative(self.sweeping_period, "sweeping_period")
 
     @classmethod
     def klipper(cls, **kw: float) -> ResonanceTest:
@@ -203,8 +200,7 @@ def excitation_psd(test: ResonanceTest, f: np.ndarray) -> np.ndarray:
     ``E_vib(f) = (8/pi^2) accel_per_hz^2 f^2 / B`` inside the excited band plus
     ``E_sweep(f) = 4 S^2 / (pi^2 P f^2)`` (module docstring).
     """
-    if not isinstance(test, ResonanceTest):
-        raise TypeError(f"test must be a ResonanceTest, got {type(test).__name__}")
+    v.instance_of(test, ResonanceTest, "test", "a ResonanceTest")
     f = v.strict_real_array(f, "f")
     if np.any(f < 0):
         raise ValueError("f must be frequencies >= 0 Hz")

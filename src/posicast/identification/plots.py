@@ -1,23 +1,30 @@
-"""Plots: measured spectrum with the fitted model, and the chosen shaper's attenuation."""
+"""Plots: measured spectrum with the fitted model, and the chosen shaper's attenuation.
+
+Imported only when plotting (the CLI's ``--plot`` and the reports import it where they
+draw), so matplotlib is imported here at module level.
+"""
 
 from __future__ import annotations
 
 from typing import Any
 
+import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
+from .. import _validate as v
+from ..firmware import vibration_grid
+from ..firmware.klipper import KLIPPER_TEST_DAMPING
 from .calibration import Calibration
-from .estimators import Identification
+from .results import Identification
 
 __all__ = ["fit_plot", "calibration_plot"]
 
 
-def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Any = None) -> tuple[Any, Any]:
+def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Axes | None = None) -> tuple[Figure, Axes]:
     """Spectrum (PSD fits) or time series (OE-type fits) with the model; returns ``(fig, ax)``."""
-    import matplotlib.pyplot as plt
-
-    if not isinstance(ident, Identification):
-        raise TypeError("ident must be an Identification")
+    v.instance_of(ident, Identification, "ident", "an Identification")
     fig, ax = plt.subplots(figsize=(7, 3.5)) if ax is None else (ax.figure, ax)
     if ident.freqs is not None and ident.spectrum is not None:
         ax.semilogy(ident.freqs, ident.spectrum, lw=0.8, label="measured PSD")
@@ -38,7 +45,7 @@ def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Any = None
     return fig, ax
 
 
-def calibration_plot(cal: Calibration) -> Any:
+def calibration_plot(cal: Calibration) -> Figure:
     """The calibration figure; returns the figure.
 
     Left, per file: the measured PSD, the fitted model and its background (excitation
@@ -47,15 +54,17 @@ def calibration_plot(cal: Calibration) -> Any:
     scores on (grey) and the vibration left by each recommended setting (solid) and by
     the firmware tool's own pick (dashed), worst over damping 0.075-0.15.
     """
-    import matplotlib.pyplot as plt
-
-    from ..firmware import vibration_grid
-    from ..firmware.klipper import KLIPPER_TEST_DAMPING
-
-    if not isinstance(cal, Calibration):
-        raise TypeError("cal must be a Calibration")
+    v.instance_of(cal, Calibration, "cal", "a Calibration")
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(13, 4.5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    _spectra_panel(a1, cal, colours)
+    _vibration_panel(a2, cal, colours)
+    fig.tight_layout()
+    return fig
+
+
+def _spectra_panel(a1: Axes, cal: Calibration, colours: list[str]) -> None:
+    """Per file: measured PSD, fitted model, excitation shape, fitted band and the modes' intervals."""
     for k, fr in enumerate(cal.files):
         c = colours[k % len(colours)]
         name = fr.path.rsplit("/", 1)[-1]
@@ -84,6 +93,10 @@ def calibration_plot(cal: Calibration) -> Any:
                  fontsize=9)
     if a1.get_legend_handles_labels()[0]:
         a1.legend(fontsize=7)
+
+
+def _vibration_panel(a2: Axes, cal: Calibration, colours: list[str]) -> None:
+    """The firmware's spectrum (grey) and the vibration each recommended setting and each tool's pick leave."""
     spectra = [(fr.resonance.firmware_freqs, fr.resonance.firmware_psd) for fr in cal.files if fr.resonance]
     fmax = 2.5 * max(m.freq_hz for m in cal.modes)
     f = np.linspace(1.0, max(fmax, 50.0), 800)
@@ -110,5 +123,3 @@ def calibration_plot(cal: Calibration) -> Any:
     if a2.get_legend_handles_labels()[0]:
         a2.legend(fontsize=7)
     a2.set_title("shaper response over the measured spectrum (grey)", fontsize=9)
-    fig.tight_layout()
-    return fig

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 
@@ -48,7 +48,7 @@ from ..firmware.base import smoothing_offsets
 from ..firmware.klipper import DEFAULT_DAMPING, _above_threshold, firmware_vibrations, klipper_recommendation
 from ..modes import Mode
 from ..shapers import Shaper, design
-from .estimators import Interval
+from .results import Interval
 
 __all__ = ["ModeBox", "mode_boxes", "Candidate", "Recommendation", "recommend_setting", "optimum",
            "klipper_smoothing"]
@@ -192,10 +192,7 @@ class Recommendation:
 
 
 def _margin(margin: Any) -> float:
-    margin = v.real(margin, "margin")
-    if not 0.0 <= margin < 0.5:
-        raise ValueError(f"margin must be in [0, 0.5), got {margin:g}")
-    return margin
+    return v.real_in_range(margin, "margin", 0.0, 0.5, hi_open=True)
 
 
 def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
@@ -212,12 +209,9 @@ def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -
     >>> 0 < a < b
     True
     """
-    if not isinstance(shaper, Shaper):
-        raise TypeError(f"shaper must be a posicast Shaper, got {type(shaper).__name__}")
+    v.instance_of(shaper, Shaper, "shaper", "a posicast Shaper")
     accel = v.positive(accel, "accel")
-    scv = v.real(scv, "scv")
-    if scv < 0:
-        raise ValueError(f"scv must be >= 0, got {scv:g}")
+    scv = v.nonnegative(scv, "scv")
     if shaper.distributed or shaper.continuous is not None:
         return float("nan")
     T, A = shaper.impulses
@@ -368,20 +362,15 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
     extra_types : sequence of ShaperType
         More types to try (Klipper master's parametric ``mzv(n, t)``, ``ei(v_tol)``).
     """
-    if not isinstance(fw, Firmware):
-        raise TypeError(f"fw must be a posicast.firmware.Firmware, got {type(fw).__name__}")
-    boxes = v.sequence(boxes, "boxes", min_len=1)
-    if not all(isinstance(b, ModeBox) for b in boxes):
-        raise TypeError("boxes must be ModeBox objects (from posicast.identification.mode_boxes)")
+    v.instance_of(fw, Firmware, "fw", "a posicast.firmware.Firmware")
+    boxes = _boxes_arg(boxes)
     if axis is not None:
         axis = v.choice(axis, "axis", ("x", "y", "z"))
     if vtol is not None:
         vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
     if max_smoothing is not None:
         max_smoothing = v.positive(max_smoothing, "max_smoothing")
-    slack = v.real(slack, "slack")
-    if not 0.0 <= slack <= 0.2:
-        raise ValueError(f"slack must be in [0, 0.2], got {slack:g}")
+    slack = v.real_in_range(slack, "slack", 0.0, 0.2)
     spectra = [_spectrum(sp, k) for k, sp in enumerate(v.sequence(spectra or [], "spectra"))]
     margin = _margin(margin)
     dampings = machine_damping(boxes)
@@ -389,8 +378,65 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
     main = sorted((b for b in boxes if b.weight >= 0.2), key=lambda b: -b.weight)
     for st in list(fw.extra_types([b.mode for b in main])) + list(extra_types):
         types[st.written] = st
-    dom = max(boxes, key=lambda b: b.weight).mode
     ref = _reference(fw, spectra) if spectra else None
+    rule = _Rule(vtol, max_smoothing, ref, slack)
+    scored, skipped = _score_types(fw, types, boxes, spectra, dampings, margin, rule)
+    if not scored:
+        raise ValueError(f"no {fw.name} shaper type is valid here: " + "; ".join(skipped))
+    if ref is not None:  # the tool's own pick is always eligible: at worst posicast agrees with it
+        rs = ref.setting
+        scored.append(_score_type(fw, rs.shaper_type, rs.damping, np.array([rs.freq]), boxes, spectra, dampings,
+                                  margin))
+        ref = Candidate(rs, float(scored[-1].vib[0]), (float(scored[-1].vib[0]),), ref.firmware_vibration,
+                        ref.smoothing, ref.max_accel)
+        rule = rule._replace(reference=ref)
+    best, why = _pick(fw, scored, rule)
+    per_type = {name: _pick(fw, mine, rule)[0] for name in types
+                if (mine := [s for s in scored if s.st.written == name])}
+    reasoning = _reasoning(fw, best, why, ref, vtol, margin, dampings, bool(spectra)) + [f"skipped {s}" for s in skipped]
+    return Recommendation(fw, axis, best, per_type, ref, _config(fw, best, axis, vtol), reasoning)
+
+
+def _config(fw: Firmware, best: Candidate, axis: str | None, vtol: float | None) -> list[str]:
+    """The firmware's configuration lines for ``best``, behind a warning when it misses the target ``vtol``."""
+    config = fw.config(best.setting, axis or "x")
+    if vtol is not None and best.vibration > vtol:
+        mark = "#" if isinstance(fw, Klipper) else ";"
+        config = [f"{mark} warning: no {fw.name} setting keeps the worst case within {100 * vtol:.0f} %; this one "
+                  f"leaves {100 * best.vibration:.1f} %"] + config
+    return config
+
+
+def _boxes_arg(boxes: object) -> list[ModeBox]:
+    """``boxes`` as a non-empty list of :class:`ModeBox`."""
+    boxes = v.sequence(boxes, "boxes", min_len=1)
+    if not all(isinstance(b, ModeBox) for b in boxes):
+        raise TypeError("boxes must be ModeBox objects (from posicast.identification.mode_boxes)")
+    return boxes
+
+
+class _Rule(NamedTuple):
+    """How :func:`_choose` picks among scored settings: the vibration target, the smoothing bound, the
+    firmware tool's own pick and the slack allowed against it."""
+
+    vtol: float | None
+    max_smoothing: float | None
+    reference: Candidate | None
+    slack: float
+
+
+def _pick(fw: Firmware, scored: list[_Scored], rule: _Rule) -> tuple[Candidate, str]:
+    """The chosen setting among every frequency of ``scored``, and why."""
+    where = [(s, i) for s in scored for i in range(s.freqs.size)]
+    k, why = _choose(np.concatenate([s.vib for s in scored]), np.concatenate([s.fv for s in scored]),
+                     np.concatenate([s.sm for s in scored]), *rule)
+    return _candidate(fw, *where[k]), why
+
+
+def _score_types(fw: Firmware, types: dict[str, ShaperType], boxes: list[ModeBox], spectra: Spectra,
+                 dampings: tuple[float, float, float], margin: float, rule: _Rule) -> tuple[list[_Scored], list[str]]:
+    """Every type at its design dampings on its frequency grid, refined around its choice; and the types skipped."""
+    dom = max(boxes, key=lambda b: b.weight).mode
     scored: list[_Scored] = []
     skipped: list[str] = []
     for st in types.values():
@@ -403,37 +449,19 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
         mine = [_score_type(fw, st, d, freqs, boxes, spectra, dampings, margin) for d in designs]
         # refine around this type's choice: +-1.5 % in 0.2 % steps
         k, _ = _choose(np.concatenate([m.vib for m in mine]), np.concatenate([m.fv for m in mine]),
-                       np.concatenate([m.sm for m in mine]), vtol, max_smoothing, ref, slack)
+                       np.concatenate([m.sm for m in mine]), *rule)
         at = mine[k // freqs.size]
         f0 = float(freqs[k % freqs.size])
         fine = _printable(f0 * (1.0 + 0.002 * np.arange(-7, 8)), st)
         scored += mine + ([_score_type(fw, st, at.damping, fine, boxes, spectra, dampings, margin)] if fine.size else [])
-    if not scored:
-        raise ValueError(f"no {fw.name} shaper type is valid here: " + "; ".join(skipped))
-    if ref is not None:  # the tool's own pick is always eligible: at worst posicast agrees with it
-        rs = ref.setting
-        scored.append(_score_type(fw, rs.shaper_type, rs.damping, np.array([rs.freq]), boxes, spectra, dampings,
-                                  margin))
-        ref = Candidate(rs, float(scored[-1].vib[0]), (float(scored[-1].vib[0]),), ref.firmware_vibration,
-                        ref.smoothing, ref.max_accel)
-    vib = np.concatenate([s.vib for s in scored])
-    fv = np.concatenate([s.fv for s in scored])
-    sm = np.concatenate([s.sm for s in scored])
-    where = [(s, i) for s in scored for i in range(s.freqs.size)]
-    k, why = _choose(vib, fv, sm, vtol, max_smoothing, ref, slack)
-    best = _candidate(fw, *where[k])
-    per_type: dict[str, Candidate] = {}
-    for name in types:
-        mine = [s for s in scored if s.st.written == name]
-        if not mine:
-            continue
-        loc = [(s, i) for s in mine for i in range(s.freqs.size)]
-        kk, _ = _choose(np.concatenate([s.vib for s in mine]), np.concatenate([s.fv for s in mine]),
-                        np.concatenate([s.sm for s in mine]), vtol, max_smoothing, ref, slack)
-        per_type[name] = _candidate(fw, *loc[kk])
+    return scored, skipped
+
+
+def _reasoning(fw: Firmware, best: Candidate, why: str, ref: Candidate | None, vtol: float | None, margin: float,
+               dampings: tuple[float, float, float], with_spectra: bool) -> list[str]:
     measure = (f"residual vibration weighted by the measured spectrum, worst over damping {dampings[0]:.3f}-"
-               f"{dampings[2]:.3f} (the identified range) and a +-{100 * margin:.0f} % frequency drift" if spectra else
-               "residual vibration over the modes' 95 % boxes")
+               f"{dampings[2]:.3f} (the identified range) and a +-{100 * margin:.0f} % frequency drift"
+               if with_spectra else "residual vibration over the modes' 95 % boxes")
     target = "" if vtol is None else f" (target {100 * vtol:.0f} %)"
     reasoning = [f"{fw.name}: {why}: {best.label}; worst case {100 * best.vibration:.1f} %{target}, "
                  f"smoothing {best.smoothing:.3f} mm, max_accel {best.max_accel:.0f} mm/s^2",
@@ -443,13 +471,7 @@ def recommend_setting(fw: Firmware, boxes: list[ModeBox], spectra: Spectra | Non
                          f"{100 * ref.firmware_vibration:.1f} %, smoothing {ref.smoothing:.3f} mm, worst case "
                          f"{100 * ref.vibration:.1f} %); posicast's pick has {100 * best.firmware_vibration:.1f} % "
                          "by the same measure")
-    reasoning += [f"skipped {s}" for s in skipped]
-    config = fw.config(best.setting, axis or "x")
-    if vtol is not None and best.vibration > vtol:
-        mark = "#" if isinstance(fw, Klipper) else ";"
-        config = [f"{mark} warning: no {fw.name} setting keeps the worst case within {100 * vtol:.0f} %; this one "
-                  f"leaves {100 * best.vibration:.1f} %"] + config
-    return Recommendation(fw, axis, best, per_type, ref, config, reasoning)
+    return reasoning
 
 
 def _spectrum(sp: Any, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -490,9 +512,7 @@ def optimum(boxes: list[ModeBox], *, vtol: float = 0.05) -> tuple[Shaper, float,
     Returns ``(shaper, worst_vibration, description)``; the most robust when none is within ``vtol``.
     """
     vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
-    boxes = v.sequence(boxes, "boxes", min_len=1)
-    if not all(isinstance(b, ModeBox) for b in boxes):
-        raise TypeError("boxes must be ModeBox objects (from posicast.identification.mode_boxes)")
+    boxes = _boxes_arg(boxes)
     dom = max(boxes, key=lambda b: b.weight)
     options: list[tuple[str, Shaper]] = []
     for kind, params in OPTIMUM_KINDS:

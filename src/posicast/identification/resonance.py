@@ -27,10 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import Dataset
+from .. import _validate as v
+from .dataset import Dataset
 from .excitation import SweepEstimate, estimate_sweep, klipper_normalisation
 from .significance import NoModeFound
-from .spectral import KAISER6_CORRELATION, Spectrum, block_kernel, smoothed_periodogram, welch_kernel, welch_psd
+from .spectral_model import Spectrum
+from .welch import KAISER6_CORRELATION, block_kernel, smoothed_periodogram, welch_kernel, welch_psd
 
 __all__ = ["ResonanceData", "resonance_data", "FIT_RESOLUTION"]
 
@@ -111,10 +113,9 @@ def resonance_data(ds: Dataset, axis: str | None = None) -> ResonanceData:
     axis : {"x", "y", "z"}, optional
         The tested axis when the file name does not say it.
     """
-    if not isinstance(ds, Dataset):
-        raise TypeError(f"ds must be a posicast.identification.Dataset (from load_csv), got {type(ds).__name__}")
-    if axis is not None and axis not in ("x", "y", "z"):
-        raise ValueError(f"axis must be 'x', 'y' or 'z', got {axis!r}")
+    v.instance_of(ds, Dataset, "ds", "a posicast.identification.Dataset (from load_csv)")
+    if axis is not None:
+        v.choice(axis, "axis", ("x", "y", "z"))
     name_axis = getattr(ds, "axis", None)
     notes: list[str] = list(ds.notes)
     if axis is not None and name_axis is not None and axis != name_axis:

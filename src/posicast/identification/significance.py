@@ -25,11 +25,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
 
-__all__ = ["ALPHA", "MAX_MODES", "NoModeFound", "ModeTest", "wald_test", "search_cells"]
+if TYPE_CHECKING:
+    from ..modes import Mode
+
+__all__ = ["ALPHA", "MAX_MODES", "NoModeFound", "ModeTest", "wald_test", "search_cells", "at_band_edge"]
 
 #: Level of the adjusted test: a mode whose adjusted p-value is not below it is not reported.
 ALPHA = 1e-3
@@ -203,3 +207,15 @@ def describe_failure(what: str, candidate: object, test: ModeTest) -> str:
     zeta = getattr(candidate, "zeta", float("nan"))
     return (f"no mode found ({what}): the best candidate, {freq:.4g} Hz with zeta {zeta:.3g}, is no better than "
             f"noise: it {test.describe()}")
+
+
+def at_band_edge(mode: Mode, f_lo: float, f_hi: float, zeta_floor: float = 1e-3) -> bool:
+    """True when the mode's half-power band ``f (1 +- zeta)`` is not inside ``[f_lo, f_hi]`` Hz.
+
+    Such a mode is a rise at the edge of the band, not a resolved resonance.  ``zeta`` is
+    taken at least ``zeta_floor`` (the time-domain fits 1e-3; the spectral fit 2e-3, its
+    smallest damping bound).
+    """
+    f = mode.freq_hz
+    half = max(mode.zeta, zeta_floor) * f
+    return bool(f - half < f_lo or f + half > f_hi)
