@@ -679,7 +679,7 @@ def entry_table() -> list[Entry]:
           {"h": "qp", "ignore": "array", "max_evaluations": "real"}),
         # ---------------------------------------------------------------- tune
         E("tune_pd", lambda **k: pc.tune_pd(**k), lambda: {"G": PLANT(), "ms": 2.0, "n_lines": 21},
-          {"G": "system", "S": "system", "structure": "str", "ms": "real", "F": "system", "constraints": "object",
+          {"G": "system", "S": "system", "architecture": "str", "ms": "real", "F": "system", "constraints": "object",
            "derivative_filter": "real", "kp_range": "pair", "kd_range": "pair", "n_lines": "int"},
           check=tuning_check, nan_filter=_tune_nan_filter, timeout=6.0, examples=3, pool_limit=14),
         E("tune_pi", lambda **k: pc.tune_pi(**k), lambda: {"G": ([1.0], [1.0, 2.0, 1.0]), "ms": 1.4, "n_lines": 21},

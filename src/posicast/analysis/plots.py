@@ -29,6 +29,23 @@ def _axes(ax: Any) -> tuple[Any, Any]:
     return fig, ax
 
 
+def _plot_items(items: Any, labels: Any) -> list[Shaper | SensitivityCurve]:
+    """``items`` as a non-empty list of shapers/curves (one is accepted alone), ``labels`` one string per item."""
+    if isinstance(items, (Shaper, SensitivityCurve)):
+        items = [items]
+    if not isinstance(items, (list, tuple)) or not all(isinstance(it, (Shaper, SensitivityCurve)) for it in items):
+        raise TypeError("items must be a sequence of posicast Shaper or SensitivityCurve")
+    if not items:
+        raise ValueError("items must not be empty")
+    if labels is not None:
+        if isinstance(labels, str) or not isinstance(labels, (list, tuple)) or not all(
+                isinstance(lab, str) for lab in labels):
+            raise TypeError("labels must be a sequence of strings")
+        if len(labels) != len(items):
+            raise ValueError(f"labels has {len(labels)} entries for {len(items)} items")
+    return list(items)
+
+
 def sensitivity_plot(
     items: Sequence[Shaper | SensitivityCurve],
     ax: Any = None,
@@ -71,22 +88,10 @@ def sensitivity_plot(
     >>> len(ax.lines)                       # the curve and the tolerance line
     2
     """
-    if isinstance(items, (Shaper, SensitivityCurve)):
-        items = [items]
-    if not isinstance(items, (list, tuple)) or not all(isinstance(it, (Shaper, SensitivityCurve)) for it in items):
-        raise TypeError("items must be a sequence of posicast Shaper or SensitivityCurve")
-    if not items:
-        raise ValueError("items must not be empty")
+    items = _plot_items(items, labels)
     if vtol is not None:
         vtol = v.real_in_range(vtol, "vtol", 0.0, 1e6, lo_open=True, hi_open=True)
-    if not isinstance(percent, (bool, np.bool_)):
-        raise TypeError(f"percent must be True or False, got {type(percent).__name__}")
-    if labels is not None:
-        if isinstance(labels, str) or not isinstance(labels, (list, tuple)) or not all(
-                isinstance(lab, str) for lab in labels):
-            raise TypeError("labels must be a sequence of strings")
-        if len(labels) != len(items):
-            raise ValueError(f"labels has {len(labels)} entries for {len(items)} items")
+    v.instance_of(percent, (bool, np.bool_), "percent", "True or False")
     curves = [it if isinstance(it, SensitivityCurve) else sensitivity_curve(it, ratio=ratio, reference=reference)
               for it in items]
     fig, ax = _axes(ax)

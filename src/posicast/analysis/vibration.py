@@ -248,7 +248,7 @@ class SensitivityCurve:
 
     def plot(self, ax: Any = None, **kwargs: Any) -> Any:
         """Draw on ``ax`` (created if None); returns the axes."""
-        from .plots import sensitivity_plot
+        from .plots import sensitivity_plot  # cycle: plots imports this module
 
         return sensitivity_plot([self], ax=ax, **kwargs)[1]
 

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 
 from .. import _validate as v
+from ..core.removable import removable_points
 from ..core.transfer import TransferFunction
 from ..spectra import roots
 from ..spectra.rootfinder import check_region
@@ -248,8 +249,6 @@ def spectrum_plot(
                 ax.plot(fp.real, fp.imag, "kd", ms=8, mfc="none", mew=1.5, label="poles of F")
             plotted_plant = True
         if lp.S is not None:
-            from .loop import removable_points
-
             if not (lp.S.num.is_polynomial and lp.S.num.degree < 1):
                 sz = roots(lp.S.num, region, ignore=removable_points(lp.S.num, lp.S.den)).roots
                 if sz.size:
