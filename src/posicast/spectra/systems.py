@@ -84,6 +84,8 @@ def _transfer(system: Any, name: str) -> TransferFunction:
     try:
         return as_transfer(system, name)
     except TypeError:
+        if isinstance(system, tuple):  # a (num, den) pair: as_transfer's message says what is wrong in it
+            raise
         raise TypeError(
             f"{name} must be a QuasiPolynomial, TransferFunction, Shaper, Loop, (num, den), number, "
             f"scipy or python-control system; got {type(system).__name__}"
@@ -192,7 +194,11 @@ def poles(system: Any, region: Sequence[float], *, max_evaluations: float = 5e7,
     """Poles of a transfer function, shaper or loop in ``region`` (certified count).
 
     The roots of the denominator (a loop: its characteristic quasi-polynomial)
-    less the removable points.  A quasi-polynomial has no poles.
+    less the removable points.  A quasi-polynomial has no poles.  The removable
+    points of a transfer function are found when its denominator is a polynomial
+    (every shaper's is); a denominator with delays (e.g. ``(C * G).feedback()``
+    with a delay in the loop) keeps any root it shares with the numerator: build a
+    :class:`~posicast.loops.loop.Loop` for a loop's exact closed-loop poles.
 
     Examples
     --------
