@@ -410,11 +410,8 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         >>> QuasiPolynomial.constant(1.0).equals(QuasiPolynomial([[1.0 + 1e-15]]))
         True
         """
-        if not isinstance(other, QuasiPolynomial):
-            raise TypeError(f"other must be a QuasiPolynomial, got {type(other).__name__}")
-        rtol = v.finite_real(rtol, "rtol")
-        if rtol < 0:
-            raise ValueError(f"rtol must be >= 0, got {rtol:g}")
+        v.instance_of(other, QuasiPolynomial, "other", "a QuasiPolynomial")
+        rtol = v.nonnegative(rtol, "rtol")
         if self.coeffs.shape != other.coeffs.shape:
             return False
         if self.is_zero:

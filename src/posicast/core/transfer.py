@@ -94,8 +94,8 @@ class TransferFunction(SystemVerbs):
     den: QuasiPolynomial
 
     def __init__(self, num: QuasiPolynomial, den: QuasiPolynomial) -> None:
-        if not isinstance(num, QuasiPolynomial) or not isinstance(den, QuasiPolynomial):
-            raise TypeError("num and den must be QuasiPolynomial instances")
+        v.instance_of(num, QuasiPolynomial, "num", "a QuasiPolynomial")
+        v.instance_of(den, QuasiPolynomial, "den", "a QuasiPolynomial")
         if den.is_zero:
             raise ValueError("den must not be identically zero")
         self.num = num
@@ -400,9 +400,7 @@ def delay(tau: float) -> TransferFunction:
     >>> bool(abs(delay(0.5)(1j * np.pi) - np.exp(-0.5j * np.pi)) < 1e-15)
     True
     """
-    t = v.finite_real(tau, "tau")
-    if t < 0:
-        raise ValueError(f"tau must be finite and >= 0, got {t:g}")
+    t = v.nonnegative(tau, "tau", " [s]")
     return TransferFunction(QuasiPolynomial([[1.0]], [t]), QuasiPolynomial.constant(1.0))
 
 
