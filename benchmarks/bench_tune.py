@@ -4,7 +4,7 @@ The twelve designs of seed 001 Table 1 (gantry crane, PD, control-action
 structure with Ms = 1.2 and inverse-shaper structure with Ms = 2; shapers DeZV,
 DtZV, DcZV, DtaZV, notch and none) are timed together, median of several runs
 in this process.  Next to each design: the brute-force check of its region
-(`posicast.tune.sample_check`: random gains in the region's box, ||S||inf on a
+(`posicast.testing.sample_check`: random gains in the region's box, ||S||inf on a
 dense uniform frequency grid with refinement near the bound, and a certified
 spectrum check per controller that meets the bound), its time, the points
 misclassified and how many of those are not explained by a boundary within

@@ -139,3 +139,23 @@ def test_no_function_hides_a_module(name):
 def test_every_public_name_resolves():
     for name in posicast.__all__:
         assert getattr(posicast, name) is not None
+
+
+def test_every_method_takes_its_functions_arguments():
+    S = posicast.design("dzv", Mode(10.0, 0.03))
+    assert S.stability(ignore=[0j]).stable == posicast.stability(S, ignore=[0j]).stable
+    assert float(S.spectral_abscissa(ignore=[0j])) == float(posicast.spectral_abscissa(S, ignore=[0j]))
+    np.testing.assert_array_equal(S.roots((-50, 50, -50, 50)).roots, posicast.poles(S, (-50, 50, -50, 50)).roots)
+    h = QuasiPolynomial.from_poly([1.0, 2.0])  # s + 2: its zeros are its roots
+    np.testing.assert_array_equal(h.zeros(REGION).roots, [-2.0 + 0j])
+
+
+def test_a_pair_read_as_a_quasi_polynomial_says_so():
+    with pytest.raises(ValueError, match=r"read here as a quasi-polynomial \(coeffs, delays\).*from_poly"):
+        posicast.stability(([1.0], [1.0, 3.0, 2.0]))
+
+
+def test_moved_reports_name_their_new_place():
+    for get in (lambda: posicast.demo, lambda: posicast.tune.seed001, lambda: posicast.io.Report):
+        with pytest.raises(AttributeError, match="posicast_reports"):
+            get()

@@ -73,7 +73,7 @@ def test_tune_text_and_json(capsys, tmp_path):
     assert data["stable"] and abs(data["ms"] - 1.4) < 1e-6
     assert abs(data["gains"]["ki"] - 1.0582) < 1e-3 and data["gains"]["kd"] is None
     plot = tmp_path / "region.png"
-    assert main(["tune", "--case", "gantry_crane", "--shaper", "dezv", "--structure", "inverse_shaper",
+    assert main(["tune", "--case", "gantry_crane", "--shaper", "dezv", "--architecture", "inverse_shaper",
                  "--plot", str(plot)]) == 0
     out = capsys.readouterr().out
     assert "kp = 32.89" in out and "stable" in out and plot.stat().st_size > 1000
@@ -199,3 +199,15 @@ def test_written_figure_has_the_usual_file_mode(tmp_path):
         assert out.stat().st_mode & 0o777 == 0o644
     finally:
         os.umask(mask)
+
+
+def test_tune_structure_is_the_old_name_of_architecture(capsys):
+    """issue #14: one word per concept; the 0.1 flag still works, with a warning line on stderr."""
+    argv = ["tune", "--num", "1", "--den", "1 2 1", "--controller", "pi", "--ms", "1.4", "--json"]
+    assert main(argv + ["--architecture", "feedforward"]) == 0
+    new = json.loads(capsys.readouterr().out)
+    assert main(argv + ["--structure", "feedforward"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out) == new and new["architecture"] == "feedforward"
+    assert "--structure is now --architecture" in captured.err
+    assert main(argv + ["--structure", "feedforward", "--architecture", "feedforward"]) == 2

@@ -1166,7 +1166,7 @@ def cli_cases(d: Path) -> dict[str, list[list[str]]]:
     cases += [tune_base + ["--kp-range", a, b] for a, b in (("nan", "1"), ("1", "0"), ("0", "inf"), ("-1e300", "1e300"))]
     # the shaper's arguments with the shaper outside the loop (feedforward): a valid design then costs
     # what the shaper-free loop costs, not the seconds of a delay loop's region
-    ff = tune_base + ["--structure=feedforward"]
+    ff = tune_base + ["--architecture=feedforward"]
     cases += [ff + ["--shaper=zv", f"--omega={v}", "--zeta=0.05"] for v in NUM_TEXT[:8]]
     cases += [ff + ["--shaper=zv", "--omega=5", f"--zeta={v}"] for v in NUM_TEXT[:8]]
     cases += [ff + [f"--shaper={k}", "--omega=5", "--zeta=0.05"] for k in WORD_TEXT[:4]]
@@ -1174,7 +1174,7 @@ def cli_cases(d: Path) -> dict[str, list[list[str]]]:
     cases += [["tune", "--case=gantry_crane", f"--ms={v}"] for v in ("1e300", "1e-300", "inf", "100")]
     cases += [tune_base + [f"--plot={p}"] for p in plots]
     cases += [tune_base + [f"--nyquist={p}"] for p in ("fig", str(d / "cli"), "n.png")]
-    cases += [tune_base + ["--structure=nowhere"], tune_base + ["--controller=pid"]]
+    cases += [tune_base + ["--architecture=nowhere"], tune_base + ["--structure=nowhere"], tune_base + ["--controller=pid"]]
     out["tune"] = cases
 
     ident = ["identify", csv, "--input=u", "--output=y"]

@@ -86,6 +86,19 @@ def _is_type_checking(test: ast.expr) -> bool:
         isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
 
 
+def _dynamic_target(call: ast.Call) -> str | None:
+    """The module named by ``importlib.import_module("posicast....")`` or ``__import__("posicast....")``."""
+    f = call.func
+    name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+    if name not in ("import_module", "__import__") or not call.args:
+        return None
+    arg = call.args[0]
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str) and arg.value.split(".")[0] in (
+            "posicast", "posicast_reports"):
+        return arg.value
+    return None
+
+
 def imports_of(path: Path) -> list[tuple[int, str, str | None]]:
     """``(line, absolute module, outermost enclosing function or method, or None)`` for every import in ``path``."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
@@ -101,6 +114,8 @@ def imports_of(path: Path) -> list[tuple[int, str, str | None]]:
             inner = func
             if func is None and isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 inner = child.name
+            if isinstance(child, ast.Call) and _dynamic_target(child):  # importlib.import_module("posicast.x")
+                out.append((child.lineno, _dynamic_target(child), func))
             if isinstance(child, ast.Import):
                 out.extend((child.lineno, a.name, func) for a in child.names)
             elif isinstance(child, ast.ImportFrom):
@@ -174,6 +189,8 @@ def test_reports_package_is_outside_posicast():
     ("def f():\n    from ..cli import main\n", "imports posicast.cli (layer 6)"),  # function level, upward
     ("import posicast_reports.demo\n", "posicast never imports the reports package"),
     ("from .. import testing\n", "imports posicast.testing (layer 5)"),
+    ("import importlib\ndef f():\n    return importlib.import_module('posicast.tune')\n",
+     "imports posicast.tune (layer 4)"),  # a dynamic import is an import too
 ])
 def test_a_planted_violation_is_found(tmp_path, monkeypatch, snippet, expected):
     """The check sees upward imports at module and function level (planted in a copy of a layer-2 module)."""

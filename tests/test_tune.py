@@ -3,7 +3,7 @@
 Reference numbers come from the paper (Table 1), from closed forms (the
 D-decomposition curve of a PI on a first-order-plus-dead-time plant), from
 Routh-Hurwitz brute force on polynomial loops, and from the independent
-sampling check (`posicast.tune.sample_check`: dense-frequency ||S||inf and a
+sampling check (`posicast.testing.sample_check`: dense-frequency ||S||inf and a
 certified spectrum check per sampled controller).
 """
 

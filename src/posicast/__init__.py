@@ -62,6 +62,13 @@ from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 
 __version__ = "0.1.0"
 
+
+def __getattr__(name: str) -> object:
+    if name == "demo":
+        raise AttributeError("posicast.demo moved to posicast_reports.demo (run: python -m posicast_reports.demo); "
+                             "issue #14: reports are a separate package of the repository")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 __all__ = [
     # systems
     "QuasiPolynomial", "TransferFunction", "as_transfer", "delay", "Mode",

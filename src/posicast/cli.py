@@ -157,8 +157,11 @@ def _build_parser() -> _Parser:
     t.add_argument("--shaper", help="shaper kind (see 'posicast kinds'); default: none")
     t.add_argument("--omega", type=float, help="shaper mode frequency [rad/s] (default: the case's mode)")
     t.add_argument("--zeta", type=float, help="shaper mode damping (default: the case's mode)")
-    t.add_argument("--structure", default="control_action",
-                   choices=("control_action", "inverse_shaper", "feedforward"), help="where the shaper sits")
+    t.add_argument("--architecture", default=None,
+                   choices=("control_action", "inverse_shaper", "feedforward"),
+                   help="where the shaper sits (default control_action)")
+    t.add_argument("--structure", default=None, choices=("control_action", "inverse_shaper", "feedforward"),
+                   help=argparse.SUPPRESS)  # the 0.1 spelling: still read, with a warning on stderr
     t.add_argument("--controller", default="pd", choices=("pd", "pi"), help="controller structure (default pd)")
     t.add_argument("--ms", type=float, default=2.0, help="peak sensitivity bound (default 2)")
     t.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1) (pd only)")
@@ -245,7 +248,8 @@ def _tune_json(args: argparse.Namespace, r: TuningResult) -> dict[str, Any]:
     ext = r.region.extent()
     num = _json_number
     return {
-        "controller": r.family.describe(), "structure": r.architecture, "shaper": args.shaper,
+        "controller": r.family.describe(), "architecture": r.architecture, "structure": r.architecture,
+        "shaper": args.shaper,
         "empty": r.empty, "unbounded": r.unbounded,
         "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
         "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
@@ -263,10 +267,10 @@ def _tune_cmd(args: argparse.Namespace) -> int:
             raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
         S = registry.design(args.shaper.lower(), mode)
     if args.controller == "pd":
-        r = tune_pd(G, S, args.structure, ms=args.ms, derivative_filter=args.derivative_filter,
+        r = tune_pd(G, S, _architecture(args), ms=args.ms, derivative_filter=args.derivative_filter,
                     kp_range=args.kp_range, kd_range=args.kd_range, F=F)
     else:
-        r = tune_pi(G, S, args.structure, ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, F=F)
+        r = tune_pi(G, S, _architecture(args), ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, F=F)
     figures = _tune_figures(args, r)
     for fig, out, opt in figures:  # everything computed: only now write
         _save_atomic(fig, out, opt)
@@ -277,6 +281,16 @@ def _tune_cmd(args: argparse.Namespace) -> int:
         for _, out, _opt in figures:
             print(f"wrote {out}")
     return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
+
+
+def _architecture(args: argparse.Namespace) -> str:
+    """``--architecture``, or the 0.1 spelling ``--structure`` (with a one-line warning on stderr)."""
+    if args.structure is not None:
+        if args.architecture is not None:
+            raise ValueError("give --architecture only (--structure is its old name)")
+        print("posicast: warning: --structure is now --architecture", file=sys.stderr)
+        return args.structure
+    return args.architecture or "control_action"
 
 
 def _n_modes(text: str) -> int | str:

@@ -38,4 +38,7 @@ def __getattr__(name: str) -> object:
         warnings.warn(f"posicast.identification.{name} moved: use posicast.testing.{_MOVED[name]}", FutureWarning,
                       stacklevel=2)
         return getattr(testing, _MOVED[name])
+    if name == "report":
+        raise AttributeError("posicast.identification.report moved to posicast_reports.identification_report "
+                             "(issue #14: reports are a separate package of the repository)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

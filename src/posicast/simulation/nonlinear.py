@@ -52,6 +52,8 @@ def run_nonlinear(loop: Loop, layout: RingLayout, S: Shaper | None, sig: Signals
     recursion of seed 000 eq. 19/20), run as an explicit loop because the
     limits make the loop nonlinear.  Each step walks the ring from the plant's
     output round to its input: ``node = block(previous) + inputs added there``.
+    Its cyclomatic complexity (27) is on purpose: the per-sample ring walk stays
+    inline, see the comment at the loop.
     """
     N = sig["w"].size
     Ac, Bc, Cc, Dc = discretize_ss(loop.C, h, cm)

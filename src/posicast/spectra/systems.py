@@ -110,7 +110,14 @@ def characteristic_of(system: Any) -> Characteristic:
 def _characteristic(h: Any, name: str) -> Characteristic:
     """:func:`characteristic_of`, reading a 2-tuple as a quasi-polynomial ``(coeffs, delays)``."""
     if _is_quasi(h):
-        return Characteristic(_rf.as_quasipolynomial(h, name), np.zeros(0, dtype=complex))
+        try:
+            q = _rf.as_quasipolynomial(h, name)
+        except (TypeError, ValueError) as exc:
+            if not isinstance(h, tuple):
+                raise
+            raise type(exc)(f"{name}: a 2-tuple is read here as a quasi-polynomial (coeffs, delays) ({exc}); "
+                            "for a system (num, den) pass TransferFunction.from_poly(num, den) or use poles()") from None
+        return Characteristic(q, np.zeros(0, dtype=complex))
     if _is_loop(h):
         return Characteristic(h.characteristic, np.asarray(h.cancelled, dtype=complex))
     tf = _transfer(h, name)

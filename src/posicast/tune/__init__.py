@@ -31,4 +31,7 @@ def __getattr__(name: str) -> object:
 
         warnings.warn(f"posicast.tune.{name} moved: use posicast.testing.{_MOVED[name]}", FutureWarning, stacklevel=2)
         return getattr(testing, _MOVED[name])
+    if name in ("seed001", "report"):
+        raise AttributeError(f"posicast.tune.{name} moved to posicast_reports (issue #14: reports and seed case "
+                             "studies are a separate package of the repository, not part of the library)")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
