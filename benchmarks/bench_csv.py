@@ -117,7 +117,7 @@ def main() -> int:
             ds = lc.result
             rows_out.append([label, f"{rows:,}", f"{size / 1e6:.1f} MB", fmt_time(ref.median), fmt_time(rt.median),
                              f"{rt.median / ref.median:.2f}", fmt_time(lc.median), f"{lc.median / ref.median:.2f}",
-                             "yes" if same else "NO", f"{ds.fs:.4f}"])
+                             "yes" if same else "NO", f"{ds.sample_rate:.4f}"])
             del ref, rt, lc, ds
             mem = {(tool, how): peak_memory(path, tool, how)
                    for tool in ("posicast", "np.loadtxt") for how in ("tracemalloc", "rss")}

@@ -35,8 +35,8 @@ TRUE = posicast.Mode.from_hz(28.0, 0.05)
 def _ema(d):
     from sdypy import EMA
 
-    f, Puy = signal.csd(d.u, d.y, fs=d.fs, nperseg=512)
-    _, Puu = signal.welch(d.u, fs=d.fs, nperseg=512)
+    f, Puy = signal.csd(d.u, d.y, fs=d.sample_rate, nperseg=512)
+    _, Puu = signal.welch(d.u, fs=d.sample_rate, nperseg=512)
     with warnings.catch_warnings(), contextlib.redirect_stderr(io.StringIO()):
         warnings.simplefilter("ignore")
         a = EMA.Model(frf=(Puy / Puu)[None, :], freq=f, lower=5, upper=100, pol_order_high=30,

@@ -159,3 +159,21 @@ def test_moved_reports_name_their_new_place():
     for get in (lambda: posicast.demo, lambda: posicast.tune.seed001, lambda: posicast.io.Report):
         with pytest.raises(AttributeError, match="posicast_reports"):
             get()
+
+
+def test_one_word_for_the_sample_rate_and_the_shaper_argument():
+    """sample_rate (simulation's word) in identification and testing too; S (the loops' word) in analysis too."""
+    from posicast import testing
+
+    new = testing.synthetic(Mode(30.0, 0.05), "step", sample_rate=200.0, n=100, seed=1)
+    assert new.sample_rate == 200.0
+    with pytest.warns(FutureWarning, match="fs= is now sample_rate="):
+        old = testing.synthetic(Mode(30.0, 0.05), "step", fs=200.0, n=100, seed=1)
+    np.testing.assert_array_equal(old.y, new.y)
+    with pytest.warns(FutureWarning, match="fs is now"):
+        assert old.fs == 200.0
+    S = posicast.design("zv", Mode(9.0, 0.1))
+    with pytest.warns(FutureWarning, match="shaper= is now S="):
+        assert posicast.residual_vibration(shaper=S, omega=10.0, zeta=0.1) == posicast.residual_vibration(S, 10.0, 0.1)
+    with pytest.raises(TypeError, match="give S only"):
+        posicast.residual_vibration(S=S, omega=10.0, zeta=0.1, shaper=S)

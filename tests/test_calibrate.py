@@ -317,7 +317,7 @@ def test_reprapfirmware_recording_is_read_and_refused_with_a_way(tmp_path) -> No
     path.write_text("Sample,X,Y,Z\n" + "".join(f"{i},{x:.4f},0.0000,1.0000\n" for i, x in zip(k, ring))
                     + "Rate 1344, overflows 0\n")
     ds = load_csv(path)
-    assert ds.kind == "rrf_accelerometer" and ds.fs == 1344.0 and ds.t[-1] == pytest.approx(1999 / 1344)
+    assert ds.kind == "rrf_accelerometer" and ds.sample_rate == 1344.0 and ds.t[-1] == pytest.approx(1999 / 1344)
     assert ds.columns["accel_z"][0] == pytest.approx(9806.65) and list(ds.columns) == ["accel_x", "accel_y", "accel_z"]
     with pytest.raises(ValueError, match="method decay"):
         posicast.calibrate(path)

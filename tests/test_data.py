@@ -182,7 +182,7 @@ def test_comment_line_before_header_is_not_the_header(tmp_path) -> None:
     rows = "".join(f"{k / 100},{k % 2},{k}\n" for k in range(20))
     f = _write(tmp_path, "c.csv", "# exported by scope, channel 1, channel 2\ntime,u,y\n" + rows)
     ds = load_csv(f)
-    assert list(ds.columns) == ["u", "y"] and ds.fs == pytest.approx(100.0)
+    assert list(ds.columns) == ["u", "y"] and ds.sample_rate == pytest.approx(100.0)
     # early Klipper: a "##drops=..." statistics line (5 fields) before the "#time,..." header (4 fields)
     _, raw = _raw_rows(100)
     g = _write(tmp_path, "adxl345-y.csv", STATS_LINE + RAW_HEADER + raw)
@@ -251,7 +251,7 @@ def test_line_endings_and_trailing_commas_and_spaces(tmp_path, small_blocks) -> 
         assert header == ["time", "u", "y"], name
         assert np.array_equal(data, ref), name
     ds = load_csv(_write(tmp_path, "v.csv", variants["crlf"]))
-    assert ds.fs == pytest.approx(100.0) and list(ds.columns) == ["u", "y"]
+    assert ds.sample_rate == pytest.approx(100.0) and list(ds.columns) == ["u", "y"]
 
 
 # ----------------------------------------------------------------------------- small and empty files, paths
@@ -300,7 +300,7 @@ def test_jitter_within_half_step_is_resampled(tmp_path) -> None:
     off = 0.3 * (-1.0) ** np.arange(401)
     f, t = _jittered(tmp_path, off)
     ds = load_csv(f)
-    assert ds.resampled and ds.fs == pytest.approx(1000.0, rel=1e-12)  # (t[-1] - t[0]) / 400 = 1 ms exactly
+    assert ds.resampled and ds.sample_rate == pytest.approx(1000.0, rel=1e-12)  # (t[-1] - t[0]) / 400 = 1 ms exactly
     assert ds.t0 == t[0]
     np.testing.assert_allclose(ds.column("y"), 3.0 + 2.0 * (ds.t0 + ds.t), rtol=0, atol=1e-12)
     assert any("0.30 of a step" in n and "resampled to 1000 Hz" in n for n in ds.notes)
@@ -336,7 +336,7 @@ def test_time_units_converted_to_seconds(tmp_path, name: str, scale: float) -> N
     h = 0.002  # s
     f = _write(tmp_path, "u.csv", f"{name},y\n" + "".join(f"{k * h * scale!r},{k % 3}\n" for k in range(50)))
     ds = load_csv(f)
-    assert ds.fs == pytest.approx(1 / h, rel=1e-9)
+    assert ds.sample_rate == pytest.approx(1 / h, rel=1e-9)
     assert (scale == 1.0) or any(name in n and "converted to seconds" in n for n in ds.notes)
 
 
@@ -379,7 +379,7 @@ def test_resonances_psd(tmp_path, hash_: bool) -> None:
     assert ds.kind == "klipper_psd" and ds.klipper_output == "resonances" and ds.axis == "x"
     assert list(ds.columns) == ["psd_x", "psd_y", "psd_z", "psd_xyz"] and not ds.shaper_columns
     assert np.array_equal(ds.t, ref[:, 0]) and np.array_equal(ds.columns["psd_xyz"], ref[:, 4])
-    assert ds.accel_per_hz is None and math.isnan(ds.fs)
+    assert ds.accel_per_hz is None and math.isnan(ds.sample_rate)
 
 
 def test_calibration_data_keeps_shaper_columns_apart(tmp_path) -> None:
@@ -445,7 +445,7 @@ def test_raw_log_names(tmp_path, name: str, axis, output) -> None:
     _, rows = _raw_rows(200)
     ds = load_csv(_write(tmp_path, name, RAW_HEADER + rows))
     assert ds.kind == "klipper_raw" and ds.axis == axis and ds.klipper_output == output
-    assert ds.fs == pytest.approx(3200.0, rel=1e-3) and ds.t0 == pytest.approx(1000.0, abs=1e-3)
+    assert ds.sample_rate == pytest.approx(3200.0, rel=1e-3) and ds.t0 == pytest.approx(1000.0, abs=1e-3)
 
 
 # ----------------------------------------------------------------------------- size and memory

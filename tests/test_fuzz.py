@@ -423,7 +423,7 @@ def TUNED():
 @functools.lru_cache(maxsize=None)
 def SYNTH():
     testing = importlib.import_module("posicast.testing")
-    return testing.synthetic(posicast.Mode(2 * math.pi * 5.0, 0.05), "random_binary", fs=200.0, n=400, seed=1,
+    return testing.synthetic(posicast.Mode(2 * math.pi * 5.0, 0.05), "random_binary", sample_rate=200.0, n=400, seed=1,
                            noise=0.001)
 
 
@@ -727,20 +727,20 @@ def entry_table() -> list[Entry]:
         E("identify", lambda **k: pc.identify(**k), lambda: {"t": SYNTH().t, "u": SYNTH().u, "y": SYNTH().y},
           {"t": "array", "u": "array", "y": "array", "n_modes": "int", "method": "str", "covariance": "str",
            "max_modes": "int", "band": "pair", "excitation_slope": "real", "nk": "int"},
-          nan_filter=allow_nan(".fit_percent", ".whiteness_p", ".fs"), timeout=6.0, pool_limit=12),
+          nan_filter=allow_nan(".fit_percent", ".whiteness_p", ".sample_rate"), timeout=6.0, pool_limit=12),
         E("whiteness", lambda **k: ident.whiteness(**k), lambda: {"e": np.sin(np.arange(100.0)), "lags": 10},
           {"e": "array", "lags": "int"}),
         E("synthetic", lambda **k: testing.synthetic(**k), lambda: {"modes": mode(), "input": "step", "n": 200},
-          {"modes": "mode", "input": "str", "fs": "real", "n": "int", "noise": "real", "bits": "int",
+          {"modes": "mode", "input": "str", "sample_rate": "real", "n": "int", "noise": "real", "bits": "int",
            "density": "real", "seed": "int", "delay": "int", "period": "real"}),
-        E("simulate_modes", lambda **k: testing.simulate_modes(**k), lambda: {"modes": mode(), "u": np.ones(100), "fs": 200.0},
-          {"modes": "mode", "u": "array", "fs": "real", "output": "str", "gains": "array"}),
-        E("excitation", lambda **k: testing.excitation(**k), lambda: {"kind": "chirp", "n": 100, "fs": 200.0},
-          {"kind": "str", "n": "int", "fs": "real", "seed": "int", "delay": "int", "freq": "real", "period": "real"}),
+        E("simulate_modes", lambda **k: testing.simulate_modes(**k), lambda: {"modes": mode(), "u": np.ones(100), "sample_rate": 200.0},
+          {"modes": "mode", "u": "array", "sample_rate": "real", "output": "str", "gains": "array"}),
+        E("excitation", lambda **k: testing.excitation(**k), lambda: {"kind": "chirp", "n": 100, "sample_rate": 200.0},
+          {"kind": "str", "n": "int", "sample_rate": "real", "seed": "int", "delay": "int", "freq": "real", "period": "real"}),
         E("klipper_log", lambda **k: testing.klipper_log(**k),
           lambda: {"path": str(DATA_DIR() / "out" / "k.csv"), "modes": pc.Mode(2 * math.pi * 40.0, 0.05),
-                   "fs": 800.0, "min_freq": 20.0, "max_freq": 60.0, "hz_per_sec": 40.0},
-          {"path": "path_out", "modes": "mode", "fs": "real", "min_freq": "real", "max_freq": "real",
+                   "sample_rate": 800.0, "min_freq": 20.0, "max_freq": 60.0, "hz_per_sec": 40.0},
+          {"path": "path_out", "modes": "mode", "sample_rate": "real", "min_freq": "real", "max_freq": "real",
            "hz_per_sec": "real", "direction": "array", "jitter": "real", "density": "real", "lead": "real"},
           pool_limit=12, writes=True),
         E("load_csv", lambda **k: ident.load_csv(**k), lambda: {"path": csv_path(), "resample": "auto"},

@@ -86,7 +86,7 @@ def test_public_api_shape() -> None:
 
 def test_acceleration_output_and_auto_order() -> None:
     true = [Mode.from_hz(20.0, 0.04), Mode.from_hz(55.0, 0.03)]
-    d = synthetic(true, "random_binary", n=3000, fs=400.0, noise=0.02, output="acceleration", seed=2,
+    d = synthetic(true, "random_binary", n=3000, sample_rate=400.0, noise=0.02, output="acceleration", seed=2,
                   gains=[1.0, 0.5])
     r = posicast.identify(d.t, d.u, d.y, n_modes="auto")
     assert len(r.modes) == 2 and r.order_scores[2] < r.order_scores[1]
@@ -143,7 +143,7 @@ def test_whiteness() -> None:
 def two_mode_log(tmp_path_factory: pytest.TempPathFactory):
     path = tmp_path_factory.mktemp("klipper") / "raw_data_x_test.csv"
     truth = [Mode.from_hz(42.0, 0.08), Mode.from_hz(63.0, 0.06)]
-    klipper_log(path, truth, fs=3200.0, gains=[0.6, 0.4], hz_per_sec=4.0, density=150.0, seed=1, jitter=2e-5)
+    klipper_log(path, truth, sample_rate=3200.0, gains=[0.6, 0.4], hz_per_sec=4.0, density=150.0, seed=1, jitter=2e-5)
     return path, truth
 
 
@@ -164,7 +164,7 @@ def test_two_close_modes_from_klipper_log(two_mode_log) -> None:
 
 def test_klipper_file_is_resampled(two_mode_log) -> None:
     ds = load_csv(two_mode_log[0])
-    assert ds.kind == "klipper_raw" and ds.resampled and ds.fs == pytest.approx(3200.0, rel=1e-5)
+    assert ds.kind == "klipper_raw" and ds.resampled and ds.sample_rate == pytest.approx(3200.0, rel=1e-5)
 
 
 # ----------------------------------------------------------------------------- recommendation

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import math
+import warnings
 from numbers import Integral, Real
 from typing import Any
 
@@ -327,3 +329,34 @@ def index(value: Any, name: str, size: int, what: str = "an index") -> int:
     if not 0 <= value < size:
         raise ValueError(f"{name} must be {what} in [0, {size - 1}], got {value}")
     return int(value)
+
+
+# --- lead (issue #14): renamed keywords
+
+
+def renamed_keywords(**old_to_new: str) -> Any:
+    """Decorator: a keyword's old name still works, with a FutureWarning (one word per concept).
+
+    >>> @renamed_keywords(fs="sample_rate")
+    ... def f(sample_rate): return sample_rate
+    >>> import warnings
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     f(fs=2.0), caught[0].category.__name__
+    (2.0, 'FutureWarning')
+    """
+
+    def wrap(func: Any) -> Any:
+        @functools.wraps(func)
+        def inner(*args: Any, **kwargs: Any) -> Any:
+            for old, new in old_to_new.items():
+                if old in kwargs:
+                    if new in kwargs:
+                        raise TypeError(f"give {new} only ({old} is its old name)")
+                    warnings.warn(f"{func.__name__}: the keyword {old}= is now {new}=", FutureWarning, stacklevel=2)
+                    kwargs[new] = kwargs.pop(old)
+            return func(*args, **kwargs)
+
+        return inner
+
+    return wrap

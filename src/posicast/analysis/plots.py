@@ -108,12 +108,13 @@ def sensitivity_plot(
     return fig, ax
 
 
-def impulse_plot(shaper: Shaper, ax: Any = None, n_points: int = 1000) -> tuple[Any, Any]:
+@v.renamed_keywords(shaper="S")
+def impulse_plot(S: Shaper, ax: Any = None, n_points: int = 1000) -> tuple[Any, Any]:
     """Impulses as stems, distributed densities and an IIR part's impulse response as curves.
 
     Parameters
     ----------
-    shaper : Shaper
+    S : Shaper
     ax : matplotlib Axes, optional
     n_points : int
         Samples of each curve (distributed density on ``[0, duration]``; the
@@ -128,7 +129,7 @@ def impulse_plot(shaper: Shaper, ax: Any = None, n_points: int = 1000) -> tuple[
     Raises
     ------
     TypeError
-        ``shaper`` not a Shaper, ``n_points`` not an integer, ``ax`` not an Axes.
+        ``S`` not a Shaper, ``n_points`` not an integer, ``ax`` not an Axes.
     ValueError
         ``n_points`` outside ``[2, 1000000]``.
 
@@ -139,7 +140,7 @@ def impulse_plot(shaper: Shaper, ax: Any = None, n_points: int = 1000) -> tuple[
     >>> len(ax.lines[-1].get_xdata())
     50
     """
-    S = _check_shaper(shaper)
+    S = _check_shaper(S)
     n_points = v.integer_in_range(n_points, "n_points", 2, 1_000_000)
     fig, ax = _axes(ax)
     t, a = S.impulses

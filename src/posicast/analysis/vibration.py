@@ -65,7 +65,7 @@ _INS_WORK_MAX = 6e7
 
 
 def _check_shaper(shaper: Any) -> Shaper:
-    return v.instance_of(shaper, Shaper, "shaper", "a posicast Shaper (from posicast.design)")
+    return v.instance_of(shaper, Shaper, "S", "a shaper (a posicast Shaper, from posicast.design)")
 
 
 def _check_zeta(zeta: Any) -> float:
@@ -120,12 +120,13 @@ def _abs_response(S: Shaper, p: np.ndarray, shift: np.ndarray) -> np.ndarray:
     return out
 
 
-def residual_vibration(shaper: Shaper, omega: Any, zeta: float | None = None, reference: str = "end") -> Any:
-    """Residual vibration of a mode ``(omega, zeta)`` (or a :class:`~posicast.modes.Mode`) excited through ``shaper``.
+@v.renamed_keywords(shaper="S")
+def residual_vibration(S: Shaper, omega: Any, zeta: float | None = None, reference: str = "end") -> Any:
+    """Residual vibration of a mode ``(omega, zeta)`` (or a :class:`~posicast.modes.Mode`) excited through the shaper ``S``.
 
     Parameters
     ----------
-    shaper : Shaper
+    S : Shaper
         Lumped, distributed or IIR shaper.
     omega : float or array_like or Mode
         Natural frequency (rad/s) of the actual mode: real, finite, > 0, and
@@ -148,7 +149,7 @@ def residual_vibration(shaper: Shaper, omega: Any, zeta: float | None = None, re
     Raises
     ------
     TypeError
-        ``shaper`` not a Shaper; ``omega`` not real numbers (str, complex, bool);
+        ``S`` not a Shaper; ``omega`` not real numbers (str, complex, bool);
         ``zeta`` or ``reference`` of the wrong type.
     ValueError
         ``omega`` empty, NaN/inf, <= 0 or above ``PHASE_MAX / duration``;
@@ -167,7 +168,7 @@ def residual_vibration(shaper: Shaper, omega: Any, zeta: float | None = None, re
     >>> round(float(residual_vibration(design("zv", Mode(1.0, 0.0)), 1.1, 0.0)), 6)
     0.156434
     """
-    S = _check_shaper(shaper)
+    S = _check_shaper(S)
     if isinstance(omega, Mode):
         if zeta is not None:
             raise TypeError("zeta must be omitted when the mode is given as a Mode (it carries its damping)")
@@ -253,17 +254,18 @@ class SensitivityCurve:
         return sensitivity_plot([self], ax=ax, **kwargs)[1]
 
 
+@v.renamed_keywords(shaper="S")
 def sensitivity_curve(
-    shaper: Shaper,
+    S: Shaper,
     ratio: Any = None,
     mode: Mode | None = None,
     reference: str = "end",
 ) -> SensitivityCurve:
-    """Sensitivity curve of ``shaper`` around its design mode.
+    """Sensitivity curve of the shaper ``S`` around its design mode.
 
     Parameters
     ----------
-    shaper : Shaper
+    S : Shaper
     ratio : array_like, optional
         Frequency ratios ``omega / omega_model`` (finite, > 0, non-empty; flattened),
         default 801 points on [0, 2] (the first point is 1e-3 instead of 0).
@@ -279,7 +281,7 @@ def sensitivity_curve(
     >>> [round(float(x), 4) for x in c.vibration]
     [0.0245, 0.0, 0.0245]
     """
-    S = _check_shaper(shaper)
+    S = _check_shaper(S)
     m = _design_mode(S, mode)
     ref = _check_reference(reference)
     if ratio is None:
@@ -334,8 +336,9 @@ class Insensitivity:
     at_limit: bool = False
 
 
+@v.renamed_keywords(shaper="S")
 def insensitivity(
-    shaper: Shaper,
+    S: Shaper,
     vtol: float = 0.05,
     mode: Mode | None = None,
     reference: str = "end",
@@ -365,7 +368,7 @@ def insensitivity(
 
     Parameters
     ----------
-    shaper : Shaper
+    S : Shaper
     vtol : float
         Tolerable residual vibration, in (0, 1).
     mode : Mode, optional
@@ -394,7 +397,7 @@ def insensitivity(
     >>> ins.bridged, round(ins.width, 3), round(ins.excess / ins.vtol, 5)
     (True, 0.432, 0.00014)
     """
-    S = _check_shaper(shaper)
+    S = _check_shaper(S)
     m = _design_mode(S, mode)
     tol = v.real_in_range(vtol, "vtol", 0.0, 1.0, lo_open=True, hi_open=True)
     ref = _check_reference(reference)

@@ -11,6 +11,7 @@ import math
 import numpy as np
 from scipy import signal, stats
 
+from .. import _validate as v
 from ..modes import Mode
 from .fit_statistics import fit_percent, whiteness
 from .results import Identification, Interval
@@ -19,12 +20,14 @@ from .significance import NoModeFound, wald_test
 __all__ = ["fit_arx"]
 
 
-def fit_arx(u: np.ndarray, y: np.ndarray, fs: float, nk: int = 0) -> Identification:
+@v.renamed_keywords(fs="sample_rate")
+def fit_arx(u: np.ndarray, y: np.ndarray, sample_rate: float, nk: int = 0) -> Identification:
     """Seed 002 eq. 19-25: theta = A_p^+ y_p with rows [u(k), u(k-1), -y(k-1), -y(k-2)].
 
     ``nk`` delays the input regressors (``nk = 1`` is the structure of a ZOH-sampled
     continuous system, ``u(k-1), u(k-2)``); the seed's eq. 21 is ``nk = 0``.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     h = 1.0 / fs
     k0 = max(2, nk + 1)
     ks = np.arange(k0, y.size)

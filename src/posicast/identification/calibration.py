@@ -234,7 +234,7 @@ def identify_resonances(rd: ResonanceData, n_modes: int | str = "auto", progress
                            tests=r.tests, at_edge=r.at_edge,
                            notes=[f"{rd.spectrum.source}: fitted on {rd.spectrum.band[0]:.1f}-"
                                   f"{rd.spectrum.band[1]:.1f} Hz, excitation ~ f^2 (Klipper's sweep)"] + r.notes)
-    ident.fs = float("nan")
+    ident.sample_rate = float("nan")
     return ident
 
 

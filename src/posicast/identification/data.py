@@ -173,10 +173,10 @@ def load_csv(path: str | os.PathLike[str], *, resample: str = "auto", max_bytes:
     >>> fn = os.path.join(tempfile.mkdtemp(), "d.csv")
     >>> _ = open(fn, "w").write("time,u,y\\n" + "".join(f"{k/100},{k > 3:d},{k/7}\\n" for k in range(20)))
     >>> d = load_csv(fn)
-    >>> d.kind, round(d.fs), list(d.columns)
+    >>> d.kind, round(d.sample_rate), list(d.columns)
     ('csv', 100, ['u', 'y'])
     >>> _ = open(fn, "w").write("time_ms,y\\n" + "".join(f"{10 * k},{k}\\n" for k in range(20)))
-    >>> round(load_csv(fn).fs)  # milliseconds: 100 Hz, not 0.1 Hz
+    >>> round(load_csv(fn).sample_rate)  # milliseconds: 100 Hz, not 0.1 Hz
     100
     >>> _ = open(fn, "w").write("time,u,y\\n0,1,2\\n0.01,1,x\\n")
     >>> load_csv(fn)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,7 +28,7 @@ class Dataset:
         Time (s) from the first sample, uniform (resampled if needed); frequencies for PSD files.
     columns : dict of str to ndarray
         The signals (every column but time; for PSD files the PSD columns only).
-    fs : float
+    sample_rate : float
         Sampling rate (Hz); NaN for PSD files.
     resampled : bool
         The time stamps were resampled onto a uniform grid.
@@ -60,7 +61,7 @@ class Dataset:
     kind: str
     t: np.ndarray
     columns: dict[str, np.ndarray]
-    fs: float = float("nan")
+    sample_rate: float = float("nan")
     resampled: bool = False
     notes: list[str] = field(default_factory=list)
     axis: str | None = None
@@ -69,6 +70,12 @@ class Dataset:
     shaper_freqs: dict[str, float] = field(default_factory=dict)
     accel_per_hz: float | None = None
     t0: float = float("nan")
+
+    @property
+    def fs(self) -> float:
+        """The 0.1 name of :attr:`sample_rate` (with a FutureWarning)."""
+        warnings.warn("Dataset.fs is now Dataset.sample_rate", FutureWarning, stacklevel=2)
+        return self.sample_rate
 
     def column(self, name: str) -> np.ndarray:
         """The signal ``name`` (a key of ``columns``)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import linalg
 
+from .. import _validate as v
 from ..modes import Mode
 from .output_error import ZETA_MIN, OESettings, significant_oe
 from .results import Identification
@@ -17,9 +18,11 @@ from .significance import NoModeFound
 __all__ = ["fit_decay", "matrix_pencil"]
 
 
-def fit_decay(y: np.ndarray, fs: float, n_modes: int, *, covariance: str, offset: bool,
+@v.renamed_keywords(fs="sample_rate")
+def fit_decay(y: np.ndarray, sample_rate: float, n_modes: int, *, covariance: str, offset: bool,
               weights: np.ndarray | None) -> Identification:
     """Modes of a free decay: matrix-pencil poles refined by the output-error fit of the free response."""
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     start = matrix_pencil(y - np.mean(y), 1.0 / fs, n_modes)
     settings = OESettings(covariance=covariance, feedthrough=False, offset=offset, initial_state=True,
                           weights=weights)

@@ -150,7 +150,8 @@ def _segments(test: ResonanceTest) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(times), np.asarray(accels)
 
 
-def commanded_acceleration(test: ResonanceTest, fs: float) -> tuple[np.ndarray, np.ndarray]:
+@v.renamed_keywords(fs="sample_rate")
+def commanded_acceleration(test: ResonanceTest, sample_rate: float) -> tuple[np.ndarray, np.ndarray]:
     """The commanded toolhead acceleration (mm/s^2) averaged over each sample period.
 
     Returns ``(t, a)`` sampled at ``fs`` Hz over the whole test.  The average over a
@@ -163,7 +164,8 @@ def commanded_acceleration(test: ResonanceTest, fs: float) -> tuple[np.ndarray, 
     >>> round(float(t[-1]), 1), round(float(np.abs(a).max()))   # 15 s; 60 * 20 + 400 at most
     (15.0, 1600)
     """
-    fs = v.positive(fs, "fs")
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
+    fs = v.positive(fs, "sample_rate")
     sw, acc = _segments(test)
     n = int(math.floor(sw[-1] * fs)) + 1
     if n > 2e8:
@@ -254,16 +256,18 @@ class SweepEstimate:
     tracked: float
 
 
-def estimate_sweep(y: np.ndarray, fs: float, *, window: float = 1.0) -> SweepEstimate | None:
+@v.renamed_keywords(fs="sample_rate")
+def estimate_sweep(y: np.ndarray, sample_rate: float, *, window: float = 1.0) -> SweepEstimate | None:
     """Track a linear frequency sweep in a record (spectrogram ridge and a robust line).
 
     Returns None when no sweep is found (fewer than 60 % of the active frames on one
     line, or a rate that is not positive).
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     y = v.strict_real_array(y, "y")
     if y.ndim != 1:
         raise ValueError(f"y must be one-dimensional, got shape {y.shape}")
-    fs = v.positive(fs, "fs")
+    fs = v.positive(fs, "sample_rate")
     window = v.real_in_range(window, "window", 1e-3, 100.0)
     q = max(1, int(fs // 1000))  # the sweep is tracked below 500 Hz: a q-sample mean, then every q-th sample
     if q > 1:

@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import optimize
 
+from .. import _validate as v
 from ..modes import Mode
 from .fit_statistics import fit_percent, numerical_jacobian, pole_intervals
 from .output_error import ZETA_MAX, ZETA_MIN, OEModel
@@ -149,9 +150,11 @@ def _refine(model: OEModel, th: np.ndarray, z0: float) -> np.ndarray:
     return th
 
 
-def fit_freq(u: np.ndarray, y: np.ndarray, fs: float, *, refine: bool, covariance: str,
+@v.renamed_keywords(fs="sample_rate")
+def fit_freq(u: np.ndarray, y: np.ndarray, sample_rate: float, *, refine: bool, covariance: str,
              feedthrough: bool, offset: bool, initial_state: bool, weights: np.ndarray | None = None) -> Identification:
     """Seed 002 section 3.2.2 (eq. 26-27) with its iterative refinement on the output-error model."""
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     h = 1.0 / fs
     w0, z0, f_lo_ok, f_hi_ok = _spectral_pole(u, y, fs)
     model = OEModel(u, y, h, 1, feedthrough=feedthrough, offset=offset, initial_state=initial_state,

@@ -19,6 +19,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 from scipy import optimize, signal, stats
 
+from .. import _validate as v
 from ..modes import Mode
 from .fit_statistics import fit_percent, numerical_jacobian, pole_intervals, whiteness
 from .results import Identification, PeakGuess
@@ -239,12 +240,14 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
 # ----------------------------------------------------------------------------- the fit
 
 
-def fit_oe(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, settings: OESettings, *,
+@v.renamed_keywords(fs="sample_rate")
+def fit_oe(u: np.ndarray | None, y: np.ndarray, sample_rate: float, n_modes: int, settings: OESettings, *,
            start: Sequence[Mode] | None = None, method: str = "oe") -> OEFit:
     """Output-error fit of ``n_modes`` modes (every mode kept; see :func:`significant_oe`).
 
     Nuisance terms set to ``"auto"`` are chosen by the data: see :func:`_fit_auto_terms`.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     terms = {"feedthrough": settings.feedthrough, "offset": settings.offset, "initial_state": settings.initial_state}
     auto = [name for name, val in terms.items() if val == "auto"]
     if auto:
@@ -324,13 +327,15 @@ def _fit_fixed_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: in
     return OEFit(out, rss, n_lin + th.size)
 
 
-def significant_oe(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, settings: OESettings, *,
+@v.renamed_keywords(fs="sample_rate")
+def significant_oe(u: np.ndarray | None, y: np.ndarray, sample_rate: float, n_modes: int, settings: OESettings, *,
                    start: Sequence[Mode] | None = None, method: str = "oe") -> OEFit:
     """:func:`fit_oe` keeping only the modes the data demand (see :mod:`.significance`).
 
     The least significant failing mode is dropped and the rest refitted from their
     estimates, until every mode passes; :class:`NoModeFound` when none does.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     dropped: list[str] = []
     while True:
         out, rss, k = fit_oe(u, y, fs, n_modes, settings, start=start, method=method)

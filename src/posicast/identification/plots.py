@@ -34,7 +34,7 @@ def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Axes | Non
     else:
         if y is None or ident.y_fit is None:
             raise ValueError("y is required to plot a time-domain fit")
-        tt = np.arange(len(ident.y_fit)) / ident.fs if t is None else np.asarray(t)
+        tt = np.arange(len(ident.y_fit)) / ident.sample_rate if t is None else np.asarray(t)
         ax.plot(tt, y, lw=0.6, label="measured")
         ax.plot(tt, ident.y_fit, lw=1.2, label=f"model (fit {ident.fit_percent:.1f} %)")
         ax.set_xlabel("t [s]")

@@ -195,7 +195,8 @@ def _margin(margin: Any) -> float:
     return v.real_in_range(margin, "margin", 0.0, 0.5, hi_open=True)
 
 
-def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
+@v.renamed_keywords(shaper="S")
+def klipper_smoothing(S: Shaper, accel: float = 5000.0, scv: float = 5.0) -> float:
     """Klipper's smoothing of an impulse shaper (mm): the offset after a 90 or 180 degree turn.
 
     As ``_get_shaper_smoothing`` of Klipper's shaper_calibrate.py: ``accel`` in mm/s^2,
@@ -209,12 +210,12 @@ def klipper_smoothing(shaper: Shaper, accel: float = 5000.0, scv: float = 5.0) -
     >>> 0 < a < b
     True
     """
-    v.instance_of(shaper, Shaper, "shaper", "a posicast Shaper")
+    v.instance_of(S, Shaper, "S", "a shaper (a posicast Shaper)")
     accel = v.positive(accel, "accel")
     scv = v.nonnegative(scv, "scv")
-    if shaper.distributed or shaper.continuous is not None:
+    if S.distributed or S.continuous is not None:
         return float("nan")
-    T, A = shaper.impulses
+    T, A = S.impulses
     c1, c2, c3 = smoothing_offsets(A, T)
     return float(max(math.sqrt(2.0) * (scv * c1 + 0.5 * accel * c2), 0.5 * accel * c3))
 

@@ -155,7 +155,7 @@ def _from_psd(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
 
 
 def _from_raw(ds: Dataset, ax: str | None, notes: list[str]) -> ResonanceData:
-    fs = float(ds.fs)
+    fs = float(ds.sample_rate)
     A = np.column_stack([ds.column(f"accel_{a}") for a in "xyz"])  # each estimator removes its own mean
     # the sweep is tracked on the axis that moves most
     lead = int(np.argmax(np.var(A[:: max(1, A.shape[0] // 50000)], axis=0)))

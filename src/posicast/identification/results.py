@@ -73,7 +73,7 @@ class Identification:
     covariance: str = "gauss-newton"
     y_fit: np.ndarray | None = None
     residual: np.ndarray | None = None
-    fs: float = float("nan")
+    sample_rate: float = float("nan")
     order_scores: dict[int, float] = field(default_factory=dict)
     freqs: np.ndarray | None = None
     spectrum: np.ndarray | None = None
@@ -87,6 +87,12 @@ class Identification:
         """Deprecated name of :attr:`shares` ("amplitudes" are a shaper's impulse amplitudes)."""
         warnings.warn("Identification.amplitudes is now Identification.shares", FutureWarning, stacklevel=2)
         return self.shares
+
+    @property
+    def fs(self) -> float:
+        """The 0.1 name of :attr:`sample_rate` (with a FutureWarning)."""
+        warnings.warn("Identification.fs is now Identification.sample_rate", FutureWarning, stacklevel=2)
+        return self.sample_rate
 
     def summary(self) -> str:
         lines = [f"method {self.method}: {len(self.modes)} mode(s)"]

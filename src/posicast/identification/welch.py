@@ -46,10 +46,11 @@ def _record_args(X: Any, name: str, fs: Any, resolution: Any) -> tuple[np.ndarra
     X = v.strict_real_array(X, name)
     if X.ndim not in (1, 2):
         raise ValueError(f"{name} must be 1-D or 2-D (columns summed), got shape {X.shape}")
-    return np.atleast_2d(X.T).T, v.positive(fs, "fs"), v.positive(resolution, "resolution")
+    return np.atleast_2d(X.T).T, v.positive(fs, "sample_rate"), v.positive(resolution, "resolution")
 
 
-def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> PSDEstimate:
+@v.renamed_keywords(fs="sample_rate")
+def smoothed_periodogram(X: np.ndarray, sample_rate: float, resolution: float = 1.0) -> PSDEstimate:
     """Periodogram of the whole record (columns summed), averaged over blocks of ``resolution`` Hz.
 
     The Fourier transform of a whole record of a linear system's response is exactly
@@ -60,6 +61,7 @@ def smoothed_periodogram(X: np.ndarray, fs: float, resolution: float = 1.0) -> P
     block.  A 1 % cosine taper at the ends keeps a record that does not start or end
     at rest from leaking.  Returns ``(freqs, psd, bins_per_block)``.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     X, fs, resolution = _record_args(X, "X", fs, resolution)
     n = X.shape[0]
     if not 2.0 * fs / n <= resolution <= fs / 8.0:
@@ -132,7 +134,8 @@ def welch_dispersion(win: np.ndarray, segments: float) -> float:
 KAISER6_CORRELATION = 1.96
 
 
-def welch_psd(y: np.ndarray, fs: float, resolution: float = 1.0) -> PSDEstimate:
+@v.renamed_keywords(fs="sample_rate")
+def welch_psd(y: np.ndarray, sample_rate: float, resolution: float = 1.0) -> PSDEstimate:
     """One-sided Welch PSD with segments of about ``1/resolution`` s (power of two samples).
 
     Klipper's estimator (shaper_calibrate.py: Kaiser window, beta 6, half overlap, each
@@ -140,6 +143,7 @@ def welch_psd(y: np.ndarray, fs: float, resolution: float = 1.0) -> PSDEstimate:
     lengths do; the columns of a 2-D ``y`` are summed (Klipper's ``psd_xyz``).  All
     segments of all columns go through one batched FFT.  Returns ``(freqs, psd, n_segments)``.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     Y, fs, resolution = _record_args(y, "y", fs, resolution)
     n = Y.shape[0]
     if n < 64:

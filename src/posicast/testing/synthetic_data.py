@@ -59,16 +59,16 @@ def _samples(n: Any, name: str = "n", minimum: int = 2) -> int:
     n = v.integer(n, name, minimum)
     if n > MAX_SAMPLES:
         raise ValueError(f"{name} = {n} samples would need about {8 * n * 6 / 2**30:.3g} GiB; at most "
-                         f"{MAX_SAMPLES} are generated (lower {name} or fs)")
+                         f"{MAX_SAMPLES} are generated (lower {name} or sample_rate)")
     return n
 
 
 def _rate(fs: Any, ms: Sequence[Mode] = ()) -> float:
     """A sample rate in [1e-6, 1e9] Hz, at least 1e-6 of the fastest mode's frequency (exact ZOH sampling)."""
-    fs = v.positive(fs, "fs")
+    fs = v.positive(fs, "sample_rate")
     low = max([1e-6] + [m.omega / (2 * math.pi) * 1e-6 for m in ms])
     if not low <= fs <= 1e9:
-        raise ValueError(f"fs must be in [{low:.3g}, 1e9] Hz (at least a millionth of the fastest mode), got {fs:g}")
+        raise ValueError(f"sample_rate must be in [{low:.3g}, 1e9] Hz (at least a millionth of the fastest mode), got {fs:g}")
     return fs
 
 
@@ -76,7 +76,8 @@ def _seed(seed: Any) -> int | None:
     return None if seed is None else v.integer(seed, "seed", 0)
 
 
-def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: int = 0,
+@v.renamed_keywords(fs="sample_rate")
+def excitation(kind: str, n: int, sample_rate: float, *, seed: int | None = None, delay: int = 0,
                freq: float | None = None, period: float | None = None) -> np.ndarray:
     """Input signal of ``n`` samples at ``fs`` Hz (held between samples).
 
@@ -88,7 +89,7 @@ def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: 
         from 0.5 Hz to 0.4 fs over the record.
     n : int
         Number of samples, >= 2.
-    fs : float
+    sample_rate : float
         Sample rate in Hz, > 0.
     seed : int, optional
         Seed of the random binary sequence.
@@ -105,6 +106,7 @@ def excitation(kind: str, n: int, fs: float, *, seed: int | None = None, delay: 
     >>> excitation("step", 5, 400.0, delay=2).tolist()
     [0.0, 0.0, 1.0, 1.0, 1.0]
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     n = _samples(n)
     fs = _rate(fs)
     delay = v.integer(delay, "delay", 0)
@@ -164,7 +166,8 @@ def _zoh(num: Any, den: Any, fs: float) -> tuple[np.ndarray, np.ndarray]:
     return b[: n + 1], a
 
 
-def simulate_modes(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: str = "position",
+@v.renamed_keywords(fs="sample_rate")
+def simulate_modes(modes: Mode | Sequence[Mode], u: Any, sample_rate: float, *, output: str = "position",
                    gains: Sequence[float] | None = None) -> np.ndarray:
     """Exact ZOH samples of ``sum_k gains_k F_k(s) u`` (seed 002 eq. 16), from rest.
 
@@ -174,6 +177,7 @@ def simulate_modes(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: s
     >>> round(float(y[-1]), 6)        # DC gain of eq. 16 is 1
     1.0
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     ms = _modes(modes)
     u = v.real_array(u, "u")
     if u.ndim != 1:
@@ -192,7 +196,8 @@ def simulate_modes(modes: Mode | Sequence[Mode], u: Any, fs: float, *, output: s
     return y
 
 
-def sensor(y: Any, *, fs: float, noise: float = 0.0, density: float = 0.0, bits: int | None = 12,
+@v.renamed_keywords(fs="sample_rate")
+def sensor(y: Any, *, sample_rate: float, noise: float = 0.0, density: float = 0.0, bits: int | None = 12,
            full_scale: float | None = None, rng: np.random.Generator | None = None,
            scale_range: float | None = None) -> np.ndarray:
     """Add white noise (``noise`` x range std, plus ``density`` per sqrt(Hz)) and quantise.
@@ -201,8 +206,9 @@ def sensor(y: Any, *, fs: float, noise: float = 0.0, density: float = 0.0, bits:
     standard deviation at rate ``fs`` is ``density * sqrt(fs / 2)``.  ``full_scale``
     (default 1.25 max|y|) is the +- range of the ``bits``-bit converter.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     y = v.real_array(y, "y")
-    fs = v.positive(fs, "fs")
+    fs = v.positive(fs, "sample_rate")
     if not 0.0 <= v.real(noise, "noise") < 1.0:
         raise ValueError(f"noise must be in [0, 1) (fraction of the output range), got {noise:g}")
     if v.real(density, "density") < 0:
@@ -233,10 +239,17 @@ class SyntheticData:
     y: np.ndarray
     y_clean: np.ndarray
     modes: list[Mode]
-    fs: float
+    sample_rate: float
+
+    @property
+    def fs(self) -> float:
+        """The 0.1 name of :attr:`sample_rate` (with a FutureWarning)."""
+        warnings.warn("SyntheticData.fs is now SyntheticData.sample_rate", FutureWarning, stacklevel=2)
+        return self.sample_rate
 
 
-def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 400.0, n: int = 800,
+@v.renamed_keywords(fs="sample_rate")
+def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, sample_rate: float = 400.0, n: int = 800,
               noise: float = 0.0, input_noise: float = 0.0, output: str = "position", bits: int | None = 12,
               density: float = 0.0, full_scale: float | None = None, seed: int | None = None,
               delay: int = 0, gains: Sequence[float] | None = None, period: float | None = None) -> SyntheticData:
@@ -248,7 +261,7 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
         True modes (seed 002: 28 Hz, zeta 0.05).
     input : str
         One of :data:`EXCITATIONS`.
-    fs, n : float, int
+    sample_rate, n : float, int
         Sample rate (seed 002: 400 Hz) and number of samples.
     noise : float
         Output noise standard deviation as a fraction of the clean output's
@@ -266,9 +279,10 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     Examples
     --------
     >>> d = synthetic(Mode.from_hz(28.0, 0.05), "step", n=400, noise=0.01, seed=1)
-    >>> d.t.shape, round(d.fs)
+    >>> d.t.shape, round(d.sample_rate)
     ((400,), 400)
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     ms = _modes(modes)
     fs = _rate(fs, ms)
     n = _samples(n, "n", 4)
@@ -279,7 +293,7 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     rng = np.random.default_rng(_seed(seed))
     u = excitation(input, n, fs, seed=int(rng.integers(2**31)), delay=delay, period=period)
     y0 = simulate_modes(ms, u, fs, output=output, gains=gains)
-    y = sensor(y0, fs=fs, noise=noise, density=density, bits=bits, full_scale=full_scale, rng=rng)
+    y = sensor(y0, sample_rate=fs, noise=noise, density=density, bits=bits, full_scale=full_scale, rng=rng)
     if input_noise > 0:
         u_rec = u + input_noise * float(np.ptp(u) or 1.0) * rng.standard_normal(n)
     else:
@@ -287,15 +301,18 @@ def synthetic(modes: Mode | Sequence[Mode], input: str = "step", *, fs: float = 
     return SyntheticData(np.arange(n) / fs, u_rec, y, y0, ms, fs)
 
 
-def klipper_sweep(fs: float, *, f_min: float = 5.0, f_max: float = 135.0, hz_per_sec: float = 1.0,
+@v.renamed_keywords(fs="sample_rate")
+def klipper_sweep(sample_rate: float, *, f_min: float = 5.0, f_max: float = 135.0, hz_per_sec: float = 1.0,
                   accel_per_hz: float = 60.0, method: str = "sweeping", sweeping_accel: float = 400.0,
                   sweeping_period: float = 1.2) -> np.ndarray:
     """Commanded acceleration [mm/s^2] of Klipper's ``TEST_RESONANCES`` (see :mod:`.excitation`)."""
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     test = ResonanceTest(method, f_min, f_max, hz_per_sec, accel_per_hz, sweeping_accel, sweeping_period)
     return commanded_acceleration(test, fs)[1]
 
 
-def klipper_record(modes: Mode | Sequence[Mode], *, fs: float = 3200.0, gains: Sequence[float] | None = None,
+@v.renamed_keywords(fs="sample_rate")
+def klipper_record(modes: Mode | Sequence[Mode], *, sample_rate: float = 3200.0, gains: Sequence[float] | None = None,
                    test: ResonanceTest | None = None, direction: Sequence[float] = (1.0, 0.0, 0.0),
                    density: float = 20.0, seed: int | None = None, lead: float = 0.5, clip: float | None = None,
                    **test_options: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -312,6 +329,7 @@ def klipper_record(modes: Mode | Sequence[Mode], *, fs: float = 3200.0, gains: S
     ``lead`` seconds of rest precede the test.  With empty ``modes`` (``[]``) and
     ``test="none"`` the record is sensor noise only.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     rng = np.random.default_rng(_seed(seed))
     if isinstance(test, str) and test == "none":
         fs = _rate(fs)
@@ -353,15 +371,17 @@ def klipper_record(modes: Mode | Sequence[Mode], *, fs: float = 3200.0, gains: S
     return np.arange(a.size) / fs, acc
 
 
-def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3200.0,
+@v.renamed_keywords(fs="sample_rate")
+def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, sample_rate: float = 3200.0,
                 jitter: float = 0.0, seed: int | None = None, **options: Any) -> Path:
     """Write :func:`klipper_record` as a Klipper raw log (``#time,accel_x,accel_y,accel_z``).
 
     Time stamps start at 1000 s as Klipper's do; ``jitter`` (s) perturbs them, as real
     logs have.  ``options`` are :func:`klipper_record`'s.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     path = v.path_for_output(path, "path", (".csv", ".txt"))
-    t, acc = klipper_record(modes, fs=fs, seed=seed, **options)
+    t, acc = klipper_record(modes, sample_rate=fs, seed=seed, **options)
     t = 1000.0 + t
     if v.real(jitter, "jitter") > 0:
         t = t + jitter * np.random.default_rng(None if seed is None else seed + 1).uniform(-0.5, 0.5, t.size)
@@ -374,13 +394,14 @@ def klipper_log(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3
 def klipper_dataset(modes: Mode | Sequence[Mode], *, axis: str | None = "x", **options: Any) -> Dataset:
     """:func:`klipper_record` as an in-memory :class:`~posicast.identification.Dataset` (no file)."""
     t, acc = klipper_record(modes, **options)
-    fs = float(options.get("fs", 3200.0))
+    fs = float(options.get("sample_rate", options.get("fs", 3200.0)))
     return Dataset(f"synthetic_raw_data_{axis or 'unknown'}", "klipper_raw", t,
                    {"accel_x": acc[:, 0], "accel_y": acc[:, 1], "accel_z": acc[:, 2]}, fs, axis=axis,
                    klipper_output="raw_data")
 
 
-def klipper_resonances(path: str | Path, modes: Mode | Sequence[Mode], *, fs: float = 3200.0,
+@v.renamed_keywords(fs="sample_rate")
+def klipper_resonances(path: str | Path, modes: Mode | Sequence[Mode], *, sample_rate: float = 3200.0,
                        max_freq_out: float | None = None, **options: Any) -> Path:
     """Write a ``resonances_<axis>_*.csv`` as Klipper's ``TEST_RESONANCES`` does, from :func:`klipper_record`.
 
@@ -389,8 +410,9 @@ def klipper_resonances(path: str | Path, modes: Mode | Sequence[Mode], *, fs: fl
     ``max_freq_out`` (default 1.5 x the test's ``max_freq``).  ``modes=[]`` with
     ``test="none"`` writes the spectrum of sensor noise alone.
     """
+    fs = sample_rate  # the sample rate [Hz], fs in the formulas
     path = v.path_for_output(path, "path", (".csv", ".txt"))
-    t, acc = klipper_record(modes, fs=fs, **options)
+    t, acc = klipper_record(modes, sample_rate=fs, **options)
     test = options.get("test")
     top = options.get("max_freq", test.max_freq if isinstance(test, ResonanceTest) else 135.0)
     hi = 1.5 * float(top) if max_freq_out is None else v.positive(max_freq_out, "max_freq_out")
