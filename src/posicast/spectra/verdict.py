@@ -28,7 +28,7 @@ from .abscissa import SpectralAbscissa, rightmost, spectral_abscissa
 from .argument_principle import OnBoundary, winding
 from .bounds import root_bound, sharp_bound
 from .checks import BudgetExceeded, RootFindingError, check_budget, check_ignore, prepared
-from .difference import DifferenceSpectrum, common_step, difference_spectrum
+from .difference import DifferenceSpectrum, difference_spectrum
 from .evaluation import Evaluator
 from .halfplane import root_radii, search_right_of
 
