@@ -17,14 +17,8 @@ column; nothing is returned half-parsed.
 * Klipper raw accelerometer log (``ACCELEROMETER_MEASURE``, ``TEST_RESONANCES
   OUTPUT=raw_data``): ``#time,accel_x,accel_y,accel_z`` in s and mm/s^2, also
   after Klipper's early ``##drops=...`` statistics line.
-* Klipper PSD (``TEST_RESONANCES``: ``resonances_<axis>_*.csv``;
-  ``SHAPER_CALIBRATE``: ``calibration_data_<axis>_*.csv``):
-  ``freq,psd_x,psd_y,psd_z,psd_xyz`` with or without a leading ``#``, Kalico's
-  extra ``accel_per_hz`` column, and one column per shaper (``zv(59.0)``) in
-  calibration files, kept apart in :attr:`Dataset.shaper_columns`.
-* RepRapFirmware accelerometer file (``M956``, Accelerometers.cpp): ``Sample,X,Y,Z``
-  (the axes recorded, in g) closed by ``Rate <Hz>, overflows <n>``; kind
-  ``"rrf_accelerometer"``, columns ``accel_x`` ... in mm/s^2, time from the rate.
+* Klipper PSD files (``resonances_*``, ``calibration_data_*``) and RepRapFirmware
+  accelerometer files (``M956``): see :mod:`posicast.identification.file_formats`.
 
 Uneven sampling: steps within 1 % of the median are taken as they are (the
 rate from the mean step).  Time stamps that all lie within half a step of the

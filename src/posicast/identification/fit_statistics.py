@@ -12,7 +12,7 @@ from scipy import stats
 from .. import _validate as v
 from .results import Interval
 
-__all__ = ["fit_percent", "whiteness", "PoleIntervals", "pole_intervals", "numerical_jacobian"]
+__all__ = ["fit_percent", "whiteness", "PoleIntervals", "pole_intervals", "numerical_jacobian", "half_power_span"]
 
 
 class PoleIntervals(NamedTuple):
@@ -115,3 +115,16 @@ def numerical_jacobian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray) -
         xm[i] -= dx
         J[:, i] = (fun(xp) - fun(xm)) / (2 * dx)
     return J
+
+
+def half_power_span(H: np.ndarray, j: int) -> tuple[int, int]:
+    """The first indices left and right of the peak ``j`` where ``|H|`` is at or below ``H[j] / sqrt(2)`` (-3 dB;
+    the array's ends when it never falls that far)."""
+    half = H[j] / math.sqrt(2.0)
+    a = j
+    while a > 0 and H[a] > half:
+        a -= 1
+    b = j
+    while b < len(H) - 1 and H[b] > half:
+        b += 1
+    return a, b

@@ -16,7 +16,7 @@ from scipy import optimize
 
 from .. import _validate as v
 from ..modes import Mode
-from .fit_statistics import fit_percent, numerical_jacobian, pole_intervals
+from .fit_statistics import fit_percent, half_power_span, numerical_jacobian, pole_intervals
 from .output_error import ZETA_MAX, ZETA_MIN, OEModel
 from .results import Identification
 from .significance import NoModeFound, at_band_edge, describe_failure, search_cells
@@ -108,12 +108,7 @@ def _spectral_pole(u: np.ndarray, y: np.ndarray, fs: float) -> SpectralPole:
     j = int(np.argmax(Hg))
     f_max = float(fg[j])
     half = Hg[j] / math.sqrt(2.0)  # -3 dB
-    a = j
-    while a > 0 and Hg[a] > half:
-        a -= 1
-    b = j
-    while b < len(Hg) - 1 and Hg[b] > half:
-        b += 1
+    a, b = half_power_span(Hg, j)
     fa = np.interp(half, [Hg[a], Hg[a + 1]], [fg[a], fg[a + 1]])
     fb = np.interp(half, [Hg[b], Hg[b - 1]], [fg[b], fg[b - 1]])
     dw = 2 * math.pi * (fb - fa) / fs

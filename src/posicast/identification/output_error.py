@@ -21,7 +21,7 @@ from scipy import optimize, signal, stats
 
 from .. import _validate as v
 from ..modes import Mode
-from .fit_statistics import fit_percent, numerical_jacobian, pole_intervals, whiteness
+from .fit_statistics import fit_percent, half_power_span, numerical_jacobian, pole_intervals, whiteness
 from .results import Identification, PeakGuess
 from .significance import ModeTest, NoModeFound, describe_failure, search_cells, wald_test
 
@@ -199,13 +199,7 @@ def _peaks(f: np.ndarray, H: np.ndarray, f_lo: float, f_hi: float, k: int) -> li
         prom = props["prominences"]
     out = []
     for i in idx[np.argsort(prom)[::-1][:k]]:
-        half = Hm[i] / math.sqrt(2.0)
-        j0 = i
-        while j0 > 0 and Hm[j0] > half:
-            j0 -= 1
-        j1 = i
-        while j1 < len(Hm) - 1 and Hm[j1] > half:
-            j1 += 1
+        j0, j1 = half_power_span(Hm, i)
         zeta = (f[j1] - f[j0]) / (2.0 * f[i]) if f[i] > 0 else 0.05
         out.append(PeakGuess(float(f[i]), float(np.clip(zeta, 0.003, 0.5))))
     return out

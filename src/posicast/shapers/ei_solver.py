@@ -32,34 +32,25 @@ _MAX_POINTS = 600
 _CACHE_SIZE = 64  # traced curves kept (one per family and vtol)
 
 
+def _complex_step(residual, y):
+    """``residual(y)`` and its complex-step Jacobian: one evaluation at ``y`` and at ``y + i h e_k`` for every ``k``."""
+    n = y.size
+    h = 1e-30
+    yy = np.empty((n + 1, n), dtype=complex)
+    yy[:] = y
+    yy[1:] += 1j * h * np.eye(n)
+    rr = residual(yy)
+    return rr[0].real, (rr[1:].imag / h).T
+
+
 def _fun_jac(prob: ShaperFamily, sigma: float, vtol: float):
     """Residual and complex-step Jacobian in ``x`` at fixed ``sigma``."""
-
-    def fj(x):
-        n = x.size
-        h = 1e-30
-        xx = np.empty((n + 1, n), dtype=complex)
-        xx[:] = x
-        xx[1:] += 1j * h * np.eye(n)
-        rr = prob.residual(xx, sigma, vtol)
-        return rr[0].real, (rr[1:].imag / h).T
-
-    return fj
+    return lambda x: _complex_step(lambda xx: prob.residual(xx, sigma, vtol), x)
 
 
 def _aug_fun_jac(prob: ShaperFamily, vtol: float):
     """Residual and complex-step Jacobian in ``y = (x, sigma)`` (n x (n + 1))."""
-
-    def fj(y):
-        n1 = y.size
-        h = 1e-30
-        yy = np.empty((n1 + 1, n1), dtype=complex)
-        yy[:] = y
-        yy[1:] += 1j * h * np.eye(n1)
-        rr = prob.residual(yy[:, :-1], yy[:, -1][:, None, None], vtol)
-        return rr[0].real, (rr[1:].imag / h).T
-
-    return fj
+    return lambda y: _complex_step(lambda yy: prob.residual(yy[:, :-1], yy[:, -1][:, None, None], vtol), y)
 
 
 def _newton(fj, x: np.ndarray, maxit: int) -> tuple[np.ndarray, np.ndarray]:
