@@ -36,6 +36,7 @@ __all__ = [
     "poly_mul",
     "exact_delayed_response",
     "PowerPropagator",
+    "HeldFilter",
     "block_length",
     "propagate",
 ]
@@ -278,6 +279,48 @@ class PowerPropagator:
             # x[L] = A^L x0 + sum_i A^(L-1-i) B u[i], summed directly: no FFT rounding is carried to the next block
             x_next = self.A @ (self.powers[L - 1] @ x0) + np.einsum("jnm,mj->n", self.state_markov[L - 1:: -1], U)
             return Y, x_next
+
+
+class HeldFilter:
+    """A delay-free proper transfer function on step ``h`` for a held (ZOH) input, run chunk after chunk.
+
+    Exact at the samples (the balanced realisation discretised by one matrix
+    exponential, run by :class:`PowerPropagator`); the state is carried from
+    one call of :meth:`run` to the next, so a long input can be fed in pieces.
+
+    Parameters
+    ----------
+    tf : TransferFunction
+        Delay-free, proper.
+    h : float
+        Step [s].
+    size : int
+        Longest block of the propagator (at most :data:`BLOCK`).
+    """
+
+    def __init__(self, tf: TransferFunction, h: float, size: int = BLOCK) -> None:
+        A, B, C, D = state_space(tf)
+        self.d = D
+        self.n = A.shape[0]
+        self.x = np.zeros(self.n)
+        self.size = block_length(self.n, max(1, size))
+        self.active = False  # has it seen a nonzero input (its state may be nonzero)
+        if self.n:
+            Phi, Gam = _zoh(A, B, h)
+            self.prop = PowerPropagator(Phi, Gam, self.size, C)
+
+    def run(self, u: np.ndarray) -> np.ndarray:
+        """The outputs at the samples of the held input ``u``, continuing from the previous call."""
+        self.active = self.active or bool(np.any(u))
+        if self.n == 0:
+            return self.d * u
+        y = np.empty(u.size)
+        x = self.x
+        for k in range(0, u.size, self.size):
+            Y, x = self.prop.block(x, u[None, k: k + self.size])
+            y[k: k + self.size] = Y[0]
+        self.x = x
+        return y + self.d * u if self.d else y
 
 
 def _powers(A: np.ndarray, size: int) -> np.ndarray:
