@@ -18,13 +18,14 @@ __all__ = ["MAX_BYTES", "MAX_SECONDS", "MAX_SUBSTEPS", "as_signal", "check_time"
 
 # Up-front work limits (issue #13): a simulation is refused, with the estimate and the parameter to
 # change, before it allocates anything large.  Costs measured on the reference machine (2 cores):
-# about 350 MB peak per 10^6 samples of t in the exact and sampled modes; 3.6 us and 25 us per internal
-# step for the fine-step (shaper in the loop) and the sample-by-sample (saturation/rate limit) runs.
+# about 350 MB peak per 10^6 samples of t in the exact and sampled modes; 1 us and 25 us per internal
+# step for the fine-step (shaper in the loop, run in chunks: its memory is that of the signals kept,
+# issue #15) and the sample-by-sample (saturation/rate limit) runs.
 MAX_BYTES = 2e9
 MAX_SECONDS = 60.0
 _BYTES_PER_SAMPLE = 350.0
-_BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the fine run and its comparison
-_SECONDS_PER_FINE_STEP = 3.6e-6
+_BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the nonlinear fine run
+_SECONDS_PER_FINE_STEP = 1.0e-6
 _SECONDS_PER_NONLINEAR_STEP = 25e-6
 MAX_SUBSTEPS = 1_000_000
 
@@ -76,7 +77,7 @@ def refuse_work(layout: RingLayout, S: Shaper | None, n: int, dt: float, sample_
         return  # exact continuous mode: covered by the per-sample estimate
     change = ("use fewer samples in t" + (", fewer substeps" if sample_rate is None else "")
               + (" or sample_rate (the sampled mode runs at the controller rate)" if sample_rate is None else ""))
-    if fine:
+    if fine and nonlinear:  # the linear fine run works in chunks: the per-sample estimate covers it
         v.refuse_large(_BYTES_PER_FINE_STEP * steps, MAX_BYTES, f"the simulation's {steps:.3g} internal steps",
                        change, "bytes")
     per = _SECONDS_PER_NONLINEAR_STEP if nonlinear else _SECONDS_PER_FINE_STEP

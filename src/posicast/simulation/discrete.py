@@ -294,26 +294,29 @@ class HeldFilter:
         Delay-free, proper.
     h : float
         Step [s].
-    size : int
-        Longest block of the propagator (at most :data:`BLOCK`).
+    size : int, optional
+        Longest block of the propagator (default: the first input's length; at most :data:`BLOCK`).
     """
 
-    def __init__(self, tf: TransferFunction, h: float, size: int = BLOCK) -> None:
+    def __init__(self, tf: TransferFunction, h: float, size: int | None = None) -> None:
         A, B, C, D = state_space(tf)
         self.d = D
         self.n = A.shape[0]
         self.x = np.zeros(self.n)
-        self.size = block_length(self.n, max(1, size))
+        self.size = size
         self.active = False  # has it seen a nonzero input (its state may be nonzero)
         if self.n:
-            Phi, Gam = _zoh(A, B, h)
-            self.prop = PowerPropagator(Phi, Gam, self.size, C)
+            self.Phi, self.Gam = _zoh(A, B, h)
+            self.C = C
 
     def run(self, u: np.ndarray) -> np.ndarray:
         """The outputs at the samples of the held input ``u``, continuing from the previous call."""
         self.active = self.active or bool(np.any(u))
         if self.n == 0:
             return self.d * u
+        if not hasattr(self, "prop"):  # blocks as long as the first chunk (or ``size``), at most BLOCK
+            self.size = block_length(self.n, max(1, self.size or u.size))
+            self.prop = PowerPropagator(self.Phi, self.Gam, self.size, self.C)
         y = np.empty(u.size)
         x = self.x
         for k in range(0, u.size, self.size):

@@ -120,7 +120,7 @@ class ShapedLoop:
         one state space ``z+ = Aa z + Ba [w, d, di, n, far]`` over blocks of the nearest far tap.
 
         ``z`` holds the loop's state ``x``, the last ``Lh`` shaper inputs ``xs`` (the recursion's head)
-        and its last ``deg D`` outputs ``q``.
+        and the recursion's state, the differences ``Delta^m q_{j-1}``, ``m < deg D``.
         """
         plan = running_sums(S, self.delayed, self.first) if self.delayed.size else None
         if plan is None:  # the taps themselves are the far taps (lumped shapers), or there are none
@@ -135,9 +135,10 @@ class ShapedLoop:
         nz = nx + lh + p
         ixs = self.ixs
         cx, dq, bq = self.Sx[ixs], self.Su[ixs, 4], self.B[:, 4]
-        cq = np.zeros(nz)  # q_j = cq z_j + far_j
-        cq[nx + plan.head - 1] = plan.head_coef
-        cq[nx + lh: nz] = -plan.den[1:]
+        cr = np.zeros(nz)  # Delta^p q_j = cr z_j + far_j (the head of R)
+        cr[nx + plan.head - 1] = plan.head_coef
+        cq = cr.copy()  # q_j = sum_m Delta^m q_{j-1} + Delta^p q_j = cq z_j + far_j
+        cq[nx + lh: nz] = 1.0
         cs = dq * cq  # xs_j = cs z_j + (known_j + dq far_j)
         cs[:nx] += cx
         Aa = np.zeros((nz, nz))
@@ -150,10 +151,10 @@ class ShapedLoop:
             Aa[nx + 1: nx + lh, nx: nx + lh - 1] = np.eye(lh - 1)
             Ba[nx, :4] = self.Su[ixs, :4]
             Ba[nx, 4] = dq
-        if p:
-            Aa[nx + lh] = cq
-            Aa[nx + lh + 1: nz, nx + lh: nz - 1] = np.eye(p - 1)
-            Ba[nx + lh, 4] = 1.0
+        if p:  # Delta^m q_j = sum_{l >= m} Delta^l q_{j-1} + Delta^p q_j
+            Aa[nx + lh: nz] = cr
+            Aa[nx + lh: nz, nx + lh: nz] += np.triu(np.ones((p, p)))
+            Ba[nx + lh: nz, 4] = 1.0
         self.Aa, self.Ba, self.cq, self.lh = Aa, Ba, cq, lh
         self.block = plan.block if plan.far.size else BLOCK
         self.tail_length = self.last + p
@@ -266,7 +267,7 @@ class ShapedLoop:
             if lh:
                 z[nx: nx + lh] = hist[o + k - lh: o + k][::-1]  # xs[k - 1], .., xs[k - lh]
             if p:
-                z[nx + lh:] = plan.exact_outputs(hist, o + k)  # q[k - 1], .., q[k - p]
+                z[nx + lh:] = plan.exact_state(hist, o + k)  # Delta^m q[k - 1]
             Y, z = prop.block(z, np.vstack([ext[:, k:kk], far]))
             X[:, k:kk] = Y[:nx]
             q[k:kk] = Y[nx] + far
@@ -332,9 +333,9 @@ def load_response(loop: Loop, up: np.ndarray, d: np.ndarray, h: float) -> np.nda
     as a balanced state space (:class:`~posicast.simulation.discrete.HeldFilter`):
     a high-order transfer polynomial at a small step loses about 1e-8 here.
     """
-    y = HeldFilter(cancel_origin(loop.F * loop.G), h, up.size).run(up)
+    y = HeldFilter(cancel_origin(loop.F * loop.G), h).run(up)
     if np.any(d):
-        y = y + HeldFilter(loop.F, h, d.size).run(d)
+        y = y + HeldFilter(loop.F, h).run(d)
     return y
 
 
