@@ -304,14 +304,12 @@ class HeldFilter:
         self.n = A.shape[0]
         self.x = np.zeros(self.n)
         self.size = size
-        self.active = False  # has it seen a nonzero input (its state may be nonzero)
         if self.n:
             self.Phi, self.Gam = _zoh(A, B, h)
             self.C = C
 
     def run(self, u: np.ndarray) -> np.ndarray:
         """The outputs at the samples of the held input ``u``, continuing from the previous call."""
-        self.active = self.active or bool(np.any(u))
         if self.n == 0:
             return self.d * u
         if not hasattr(self, "prop"):  # blocks as long as the first chunk (or ``size``), at most BLOCK

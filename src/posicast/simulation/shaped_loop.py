@@ -158,13 +158,15 @@ class ShapedLoop:
         self.Aa, self.Ba, self.cq, self.lh = Aa, Ba, cq, lh
         self.block = plan.block if plan.far.size else BLOCK
         self.tail_length = self.last + p
+        self._props: dict[tuple[tuple[int, ...], int], PowerPropagator] = {}
 
     def reset(self) -> None:
         """Start again from rest (zero state and history)."""
         self._x = np.zeros(self.A.shape[0])
         self._z = np.zeros(self.Aa.shape[0])
         self._tail = np.zeros(self.tail_length)
-        self._loads = (HeldFilter(cancel_origin(self.loop.F * self.loop.G), self.h), HeldFilter(self.loop.F, self.h))
+        self._load = HeldFilter(cancel_origin(self.loop.F * self.loop.G), self.h)
+        self._load_d: HeldFilter | None = None  # F on the output disturbance, made when one acts
         self._diverged = False
 
     def response(self, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -185,11 +187,20 @@ class ShapedLoop:
         lay = self.layout
         nodes = {name: sig[i] for i, name in enumerate(lay.nodes)}
         d = lay.injected(inputs, lay.plant)
-        plant, load = self._loads
-        y = plant.run(sig[lay.plant - 1])
-        if (d is not None and np.any(d)) or load.active:
-            y = y + load.run(np.zeros(ext.shape[1]) if d is None else d)
+        y = self._load.run(sig[lay.plant - 1])
+        if self._load_d is None and d is not None and np.any(d):
+            self._load_d = HeldFilter(self.loop.F, self.h)
+        if self._load_d is not None:
+            y = y + self._load_d.run(np.zeros(ext.shape[1]) if d is None else d)
         return lay.outputs(nodes, y, None)
+
+    def _propagator(self, active: tuple[int, ...], K: int) -> PowerPropagator:
+        """The block propagator of the loop with the recursion for the input columns ``active`` (cached)."""
+        key = (active, K)
+        if key not in self._props:
+            rows = np.vstack([np.eye(self.A.shape[0], self.Aa.shape[0]), self.cq])
+            self._props[key] = PowerPropagator(self.Aa, self.Ba[:, list(active)], K, rows)
+        return self._props[key]
 
     def _xs_known(self, ext: np.ndarray) -> np.ndarray:
         """The part of the shaper input ``xs`` set by the inputs ``w, d, di, n`` (not by the state or ``q``)."""
@@ -251,10 +262,10 @@ class ShapedLoop:
         N = ext.shape[1]
         plan, nx, lh, p = self.plan, self.A.shape[0], self.lh, self.plan.order
         K = max(1, min(self.block, block_length(self.Aa.shape[0], N)))
-        if getattr(self, "_prop_size", 0) < K:
-            rows = np.vstack([np.eye(nx, self.Aa.shape[0]), self.cq])
-            self._prop, self._prop_size = PowerPropagator(self.Aa, self.Ba, K, rows), K
-        prop = self._prop
+        # only the inputs that act in this chunk enter the propagator (one per set of inputs, kept)
+        active = [i for i in range(4) if np.any(ext[i])] + ([4] if plan.far.size else [])
+        prop = self._propagator(tuple(active), K)
+        ext_active = ext[[i for i in active if i < 4]]
         xs_known = self._xs_known(ext)
         cx, dq = self.Sx[self.ixs], self.Su[self.ixs, 4]
         X = np.zeros((nx, N))
@@ -268,7 +279,7 @@ class ShapedLoop:
                 z[nx: nx + lh] = hist[o + k - lh: o + k][::-1]  # xs[k - 1], .., xs[k - lh]
             if p:
                 z[nx + lh:] = plan.exact_state(hist, o + k)  # Delta^m q[k - 1]
-            Y, z = prop.block(z, np.vstack([ext[:, k:kk], far]))
+            Y, z = prop.block(z, np.vstack([ext_active[:, k:kk], far]) if plan.far.size else ext_active[:, k:kk])
             X[:, k:kk] = Y[:nx]
             q[k:kk] = Y[nx] + far
             hist[o + k: o + kk] = cx @ X[:, k:kk] + xs_known[k:kk] + dq * q[k:kk]
