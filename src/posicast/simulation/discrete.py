@@ -264,20 +264,29 @@ class PowerPropagator:
             self.powers = _powers(A, size)  # A^j, j = 0 .. size - 1
             self.free = self.powers if C is None else C @ self.powers  # C A^j
             markov = np.concatenate([np.zeros((1, self.free.shape[1], m)), self.free[:-1] @ B])  # C A^(j-1) B
-            self.state_markov = self.powers @ B  # A^j B
-            # the convolution with the Markov parameters by FFT, their transform once for all blocks
+            # A^(size-1-j) B as (n, size, m): the last L of them, read as an (n, L m) matrix without a copy,
+            # give sum_i A^(L-1-i) B u[i] in one product
+            self.state_markov = np.ascontiguousarray((self.powers @ B)[::-1].transpose(1, 0, 2))
+            # the convolution with the Markov parameters by FFT, their transform once for all blocks,
+            # one (frequencies, outputs) slice per input
             self.nfft = sp_fft.next_fast_len(2 * size - 1, real=True)
-            self.markov_f = sp_fft.rfft(markov, self.nfft, axis=0)
+            self.markov_f = np.ascontiguousarray(sp_fft.rfft(markov, self.nfft, axis=0).transpose(2, 0, 1))
+        self.size = size
 
     def block(self, x0: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Outputs at steps ``0 .. L-1`` (columns) from ``x[0] = x0`` under the inputs ``U`` (m, L), and ``x[L]``."""
         L = U.shape[1]
         with np.errstate(over="ignore", invalid="ignore"):
-            spectrum = np.einsum("fpm,fm->fp", self.markov_f, sp_fft.rfft(U.T, self.nfft, axis=0))
+            U_f = sp_fft.rfft(U, self.nfft, axis=1)
+            spectrum = self.markov_f[0] * U_f[0][:, None]
+            for j in range(1, U_f.shape[0]):
+                spectrum += self.markov_f[j] * U_f[j][:, None]
             forced = sp_fft.irfft(spectrum, self.nfft, axis=0)[:L]
             Y = (self.free[:L] @ x0 + forced).T
             # x[L] = A^L x0 + sum_i A^(L-1-i) B u[i], summed directly: no FFT rounding is carried to the next block
-            x_next = self.A @ (self.powers[L - 1] @ x0) + np.einsum("jnm,mj->n", self.state_markov[L - 1:: -1], U)
+            n = x0.size
+            drive = self.state_markov[:, self.size - L:, :].reshape(n, -1) @ np.ascontiguousarray(U.T).reshape(-1)
+            x_next = self.A @ (self.powers[L - 1] @ x0) + drive
             return Y, x_next
 
 
