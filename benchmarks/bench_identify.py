@@ -22,7 +22,7 @@ numerator from one linear least-squares solve there; only the direct fit's
 the direct fit.  BLAS on one thread for both (OPENBLAS_NUM_THREADS=1, see
 bench_simulate.py).
 
-Usage: python benchmarks/bench_identify.py [--quick] [--samples N]
+Usage: python benchmarks/bench_identify.py [--quick] [--samples N] [--scale-only]
 """
 
 from __future__ import annotations
@@ -122,7 +122,11 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--samples", type=int, default=200_000)
+    ap.add_argument("--scale-only", action="store_true", help="only the long-record table (issue #15)")
     args = ap.parse_args()
+    if args.scale_only:
+        scale(args.samples, 3 if args.quick else 7)
+        return 0
     trials = 15 if args.quick else 100
     try:
         import sdypy.EMA  # noqa: F401
