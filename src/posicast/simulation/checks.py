@@ -24,6 +24,8 @@ __all__ = ["MAX_BYTES", "MAX_SECONDS", "MAX_SUBSTEPS", "as_signal", "check_time"
 MAX_BYTES = 2e9
 MAX_SECONDS = 60.0
 _BYTES_PER_SAMPLE = 350.0
+# the linear fine run (shaper in the loop, in chunks): at most 12 signals of 8 bytes kept per sample of t
+_BYTES_PER_KEPT_SAMPLE = 8.0 * 12
 _BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the nonlinear fine run
 _SECONDS_PER_FINE_STEP = 1.0e-6
 _SECONDS_PER_NONLINEAR_STEP = 25e-6
@@ -59,15 +61,19 @@ def check_time(t: Any) -> tuple[np.ndarray, float]:
     return t, float(dt)
 
 
-def refuse_samples(n: int) -> None:
-    v.refuse_large(_BYTES_PER_SAMPLE * n, MAX_BYTES, f"simulating {n:.3g} samples", f"use fewer samples in t "
-                   f"(at most about {MAX_BYTES / _BYTES_PER_SAMPLE:.3g}: a coarser step or a shorter time)", "bytes")
+def refuse_samples(n: int, per: float = _BYTES_PER_KEPT_SAMPLE) -> None:
+    """Refuse ``n`` samples of ``per`` bytes each beyond :data:`MAX_BYTES` (by default the cheapest method's cost;
+    :func:`refuse_work` checks again with the chosen method's)."""
+    v.refuse_large(per * n, MAX_BYTES, f"simulating {n:.3g} samples", f"use fewer samples in t "
+                   f"(at most about {MAX_BYTES / per:.3g}: a coarser step or a shorter time)", "bytes")
 
 
 def refuse_work(layout: RingLayout, S: Shaper | None, n: int, dt: float, sample_rate: Any, substeps: int | None,
                 nonlinear: bool) -> None:
     """Estimate the internal steps of the run chosen by ``simulate`` and refuse it if too large."""
     in_loop = S is not None and layout.shaper is not None
+    if sample_rate is not None or nonlinear or not in_loop:  # every signal over the whole grid, and temporaries
+        refuse_samples(n, _BYTES_PER_SAMPLE)
     if sample_rate is not None:
         steps, fine = float(n), False  # the controller runs at most once per step of t
     elif nonlinear or in_loop:
