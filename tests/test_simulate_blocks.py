@@ -117,3 +117,18 @@ def test_outputs_refused_with_their_name(bad, exc, word):
     t = np.arange(0.0, 1.0, 1e-3)
     with pytest.raises(exc, match=word):
         posicast.simulate(loop, t, w=np.ones_like(t), outputs=bad)
+
+
+def test_memory_limit_charges_the_in_loop_run_for_what_it_keeps():
+    """Two hours at 1 kHz: refused for the exact method (every signal and temporaries, ~350 B per sample),
+    accepted for the shaper-in-the-loop run, which works in chunks (at most 12 signals kept, 96 B)."""
+    from posicast.simulation.checks import refuse_work
+    from posicast.simulation.layout import read_ring
+
+    n = 7_200_000
+    S = posicast.design("dzv", MODE)
+    inside = posicast.inverse_shaper(G=G, F=F, C=C, S=S)
+    refuse_work(read_ring(inside), S, n, 1e-3, None, None, False)  # no refusal
+    outside = posicast.feedforward(G=G, F=F, C=C, S=S)
+    with pytest.raises(ValueError, match=r"simulating 7\.2e\+06 samples would need about 2\.5 GB"):
+        refuse_work(read_ring(outside), S, n, 1e-3, None, None, False)
