@@ -130,5 +130,5 @@ def test_memory_limit_charges_the_in_loop_run_for_what_it_keeps():
     inside = posicast.inverse_shaper(G=G, F=F, C=C, S=S)
     refuse_work(read_ring(inside), S, n, 1e-3, None, None, False)  # no refusal
     outside = posicast.feedforward(G=G, F=F, C=C, S=S)
-    with pytest.raises(ValueError, match=r"simulating 7\.2e\+06 samples would need about 2\.5 GB"):
+    with pytest.raises(ValueError, match=r"simulating 7\.2e\+06 samples would need about 2\.52 GB"):
         refuse_work(read_ring(outside), S, n, 1e-3, None, None, False)
