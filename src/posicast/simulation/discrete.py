@@ -317,6 +317,10 @@ class HeldFilter:
             self.Phi, self.Gam = _zoh(A, B, h)
             self.C = C
 
+    def reset(self) -> None:
+        """Back to rest (zero state)."""
+        self.x = np.zeros(self.n)
+
     def run(self, u: np.ndarray) -> np.ndarray:
         """The outputs at the samples of the held input ``u``, continuing from the previous call."""
         if self.n == 0:

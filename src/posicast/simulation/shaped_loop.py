@@ -165,8 +165,13 @@ class ShapedLoop:
         self._x = np.zeros(self.A.shape[0])
         self._z = np.zeros(self.Aa.shape[0])
         self._tail = np.zeros(self.tail_length)
-        self._load = HeldFilter(cancel_origin(self.loop.F * self.loop.G), self.h)
-        self._load_d: HeldFilter | None = None  # F on the output disturbance, made when one acts
+        if getattr(self, "_load", None) is None:
+            self._load = HeldFilter(cancel_origin(self.loop.F * self.loop.G), self.h)
+        self._load.reset()
+        if getattr(self, "_load_d", None) is not None:
+            self._load_d.reset()
+        else:
+            self._load_d: HeldFilter | None = None  # F on the output disturbance, made when one acts
         self._diverged = False
 
     def response(self, inputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
