@@ -11,7 +11,18 @@ Scenario: seed 002's mode (28 Hz, zeta 0.05) sampled at 400 Hz, 2000 samples,
 
 Errors are relative (mean +- sd) in percent; target: OE fit <= 50 ms.
 
-Usage: python benchmarks/bench_identify.py [--quick]
+Second table (issue #15, part B, row 5): one record of 200 000 samples (same mode
+and noise, random binary input).  posicast ``identify`` (OE, end to end: start,
+fit, nuisance-term tests, intervals) against a direct fit of the same ZOH model by
+``scipy.optimize.least_squares`` on all four parameters (ln omega, zeta and the two
+numerator coefficients; residual ``y - lfilter(b, a, u)``, 2-point finite-difference
+Jacobian, the same tolerances), started from posicast's own starting point with the
+numerator from one linear least-squares solve there; only the direct fit's
+``least_squares`` call is timed.  Alternating runs, medians.  Goal: posicast <= 1x
+the direct fit.  BLAS on one thread for both (OPENBLAS_NUM_THREADS=1, see
+bench_simulate.py).
+
+Usage: python benchmarks/bench_identify.py [--quick] [--samples N] [--scale-only]
 """
 
 from __future__ import annotations
@@ -19,17 +30,78 @@ from __future__ import annotations
 import argparse
 import contextlib
 import io
+import math
+import os
 import statistics
 import time
 import warnings
 
-import numpy as np
-from scipy import signal
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: see the module docstring
 
-import posicast
-from posicast.testing import synthetic
+import numpy as np  # noqa: E402
+from scipy import optimize, signal  # noqa: E402
+
+import posicast  # noqa: E402
+from posicast.identification.output_error import OEModel, _start  # noqa: E402
+from posicast.testing import synthetic  # noqa: E402
 
 TRUE = posicast.Mode.from_hz(28.0, 0.05)
+#: the previous posicast figure for 200k samples (issue #15 table): 3.2 s, 2-3x the direct fit
+PREVIOUS_SCALE = (3.2, "2-3x")
+GOAL_SCALE = 1.0
+
+
+def _zoh_den(lw: float, z: float, h: float) -> np.ndarray:
+    w = math.exp(lw)
+    lam = np.exp(complex(-z * w, w * math.sqrt(1.0 - z * z)) * h)
+    return np.array([1.0, -2.0 * lam.real, abs(lam) ** 2])
+
+
+def direct_fit(u: np.ndarray, y: np.ndarray, h: float, th0: np.ndarray) -> tuple[float, optimize.OptimizeResult]:
+    """scipy least_squares on (ln omega, zeta, b1, b2) of y = (b1 z^-1 + b2 z^-2) / A(z) u; returns its time."""
+    x1 = signal.lfilter([0.0, 1.0], _zoh_den(th0[0], th0[1], h), u)
+    b = np.linalg.lstsq(np.column_stack([x1, np.r_[0.0, x1[:-1]]]), y, rcond=None)[0]
+
+    def residual(th: np.ndarray) -> np.ndarray:
+        return y - signal.lfilter([0.0, th[2], th[3]], _zoh_den(th[0], th[1], h), u)
+
+    x0 = np.r_[th0, b]
+    t0 = time.perf_counter()
+    res = optimize.least_squares(residual, x0, method="trf", x_scale="jac", xtol=1e-10, ftol=1e-12, gtol=1e-12)
+    return time.perf_counter() - t0, res
+
+
+def scale(n: int, reps: int) -> None:
+    """Issue #15 row 5: identify (OE) on one long record against a direct least-squares fit."""
+    d = synthetic(TRUE, "random_binary", n=n, noise=0.05, seed=0)
+    h = 1.0 / d.sample_rate
+    th0 = _start(OEModel(d.u, d.y, h, 1, feedthrough=False, offset=False, initial_state=False), d.u, d.y,
+                 d.sample_rate, 1)
+    times = {"posicast identify (OE, end to end)": [], "direct scipy least_squares (4 parameters)": []}
+    r = posicast.identify(d.t, d.u, d.y)  # warm-up
+    res = direct_fit(d.u, d.y, h, th0)[1]
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        r = posicast.identify(d.t, d.u, d.y)
+        times["posicast identify (OE, end to end)"].append(time.perf_counter() - t0)
+        tm, res = direct_fit(d.u, d.y, h, th0)
+        times["direct scipy least_squares (4 parameters)"].append(tm)
+    med = {k: statistics.median(v) for k, v in times.items()}
+    direct = med["direct scipy least_squares (4 parameters)"]
+    w_d, z_d = math.exp(res.x[0]), res.x[1]
+    m = r.modes[0]
+    print(f"\n{n} samples (random binary, 5 % noise), median of {reps} alternating runs\n")
+    print("| tool | time [ms] | time / direct fit | omega [rad/s] | zeta |")
+    print("|---|---|---|---|---|")
+    print(f"| posicast identify (OE, end to end) | {1000 * med['posicast identify (OE, end to end)']:.0f} | "
+          f"{med['posicast identify (OE, end to end)'] / direct:.2f} | {m.omega:.9g} | {m.zeta:.9g} |")
+    print(f"| direct scipy least_squares (4 parameters) | {1000 * direct:.0f} | 1.00 | {w_d:.9g} | {z_d:.9g} |")
+    ratio = med["posicast identify (OE, end to end)"] / direct
+    print(f"\nsame optimum: omega {abs(m.omega / w_d - 1):.1e}, zeta {abs(m.zeta / z_d - 1):.1e} relative; posicast "
+          f"also gives intervals {r.intervals[0]}")
+    print(f"previous posicast: {PREVIOUS_SCALE[0]} s, {PREVIOUS_SCALE[1]} the direct fit (200k samples)")
+    print(f"goal: posicast <= {GOAL_SCALE:g}x the direct fit: {'met' if ratio <= GOAL_SCALE else 'NOT met'} "
+          f"({ratio:.2f}x)")
 
 
 def _ema(d):
@@ -49,7 +121,12 @@ def _ema(d):
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--samples", type=int, default=200_000)
+    ap.add_argument("--scale-only", action="store_true", help="only the long-record table (issue #15)")
     args = ap.parse_args()
+    if args.scale_only:
+        scale(args.samples, 3 if args.quick else 7)
+        return 0
     trials = 15 if args.quick else 100
     try:
         import sdypy.EMA  # noqa: F401
@@ -96,6 +173,7 @@ def main() -> int:
                   f"{100 * a[:, 0].mean():+.3f} ± {100 * a[:, 0].std():.3f} | "
                   f"{100 * a[:, 1].mean():+.2f} ± {100 * a[:, 1].std():.2f} | {cov} |"
                   + (f" ({len(rows)}/{trials} succeeded)" if len(rows) < trials else ""))
+    scale(args.samples, 3 if args.quick else 7)
     return 0
 
 

@@ -1,4 +1,5 @@
-"""posicast.simulate against python-control's forced_response (issue #4, acceptance 5).
+"""posicast.simulate against python-control's forced_response (issue #4, acceptance 5), and with the
+shaper inside the loop against a hand-written fixed-step loop and python-control with pade(10) (issue #15).
 
 60 s of the seed 000 loop (G = 1/(s^2+s), F = s/(s^2+0.6s+100), C = (10s+10)/(0.01s+1),
 eq. 25-27) at 1 kHz, delay-free (no shaper: python-control cannot represent a
@@ -8,23 +9,43 @@ each tool's own input model: posicast holds the input between samples (ZOH),
 forced_response interpolates it linearly (FOH), so the references are the
 step response (posicast) and the 1-ms ramp response (forced_response) of the
 closed loop, both from the partial fractions of T_wy(s) (scipy.signal.residue).
+
+Second table (issue #15, part B, row 3): the inverse DZV inside the same loop
+(seed 000 eq. 20, Fig. 3 architecture), 60 s at 1 kHz, step at t = 5 s:
+posicast's continuous mode (with its error estimate, i.e. a second run at
+half the step), a hand-written fixed-step Python loop (Tustin C, ZOH G and F,
+the kernel's integral by the trapezoid rule as a running sum) and
+python-control's forced_response with the delay as pade(T, 10).  Accuracy
+against a posicast run at 1/16 of the step (error ~ 1/256 of the 1 ms run's)
+for each tool's input model.  Goal: posicast <= 0.5x the hand-written loop's time.
+BLAS runs on one thread (OPENBLAS_NUM_THREADS=1, set before numpy is imported)
+for every tool: at these matrix sizes threads only add wake-up latency, which
+on a loaded 2-core machine made a 3x3 expm take 21 ms instead of 0.013 ms.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
 from pathlib import Path
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy: see the module docstring
 
 import numpy as np
 from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import md_table, print_machine_info, machine_info  # noqa: E402
+import _inloop  # noqa: E402
 
 import posicast  # noqa: E402
+
+#: the previous posicast figure for the in-loop row (issue #15 table, idle machine): 1.0 s, 1.65x the hand loop
+PREVIOUS_INLOOP = (1.0, 1.65)
+GOAL_INLOOP = 0.5
 
 G = ([1.0], [1.0, 1.0, 0.0])
 F = ([1.0, 0.0], [1.0, 0.6, 100.0])
@@ -128,7 +149,44 @@ def main(argv=None) -> int:
         ok = base / times[name] >= 20 and err <= 1e-9
         print(f"target for {name}: >= 20x faster and max error <= 1e-9: {'met' if ok else 'NOT met'}"
               f" ({base / times[name]:.1f}x, {err:.1e})")
+    inloop(reps)
     return 0
+
+
+def inloop(reps: int) -> None:
+    """Issue #15 row 3: the inverse DZV inside the loop, 60 s at 1 kHz (module docstring)."""
+    h, n = 1e-3, 60000
+    t = np.arange(n) * h
+    w = (np.arange(n) >= int(round(_inloop.STEP / h))).astype(float)
+    loop = _inloop.loop()
+    sys_c = _inloop.control_system(10)
+    tools = {
+        "posicast continuous (+ error estimate)": lambda: posicast.simulate(loop, t, w=w).y,
+        "hand-written fixed-step loop": lambda: _inloop.hand_written(w, h),
+        "python-control, pade(10)": lambda: _inloop.run_control(sys_c, t, w),
+    }
+    runs = {name: [] for name in tools}
+    out = {name: fn() for name, fn in tools.items()}  # warm-up
+    for _ in range(reps):  # alternating, so that a change of load hits every tool
+        for name, fn in tools.items():
+            t0 = time.perf_counter()
+            fn()
+            runs[name].append(time.perf_counter() - t0)
+    med = {name: float(np.median(v)) for name, v in runs.items()}
+    y_zoh, y_foh, ref_acc = _inloop.references(h, n)
+    err = {name: float(np.max(np.abs(y - (y_foh if "pade" in name else y_zoh)))) for name, y in out.items()}
+    hand = med["hand-written fixed-step loop"]
+    rows = [[name, f"{tm * 1e3:.0f} ms", f"{tm / hand:.2f}", f"{err[name]:.1e}"] for name, tm in med.items()]
+    print(f"\nShaper inside the loop (inverse DZV, seed 000), 60 s at 1 kHz, median of {reps} alternating runs\n")
+    print(md_table(["tool", "time", "time / hand-written loop", "max error of y vs exact"], rows))
+    ratio = med["posicast continuous (+ error estimate)"] / hand
+    prev_s, prev_ratio = PREVIOUS_INLOOP
+    print(f"\nexact: posicast at 1/16 of the step (its own error estimate {ref_acc:.1e}); python-control judged for"
+          f" its linearly interpolated input.\nprevious posicast: {prev_s:.1f} s idle, {prev_ratio:.2f}x the hand loop;"
+          f" now {ratio:.2f}x, {ratio / prev_ratio:.2f} of the previous ratio")
+    ok = ratio <= GOAL_INLOOP and err["posicast continuous (+ error estimate)"] <= 1e-6
+    print(f"goal: posicast <= {GOAL_INLOOP}x the hand-written loop at its accuracy (<= 1e-6): "
+          f"{'met' if ok else 'NOT met'} ({ratio:.2f}x, {err['posicast continuous (+ error estimate)']:.1e})")
 
 
 if __name__ == "__main__":

@@ -18,13 +18,16 @@ __all__ = ["MAX_BYTES", "MAX_SECONDS", "MAX_SUBSTEPS", "as_signal", "check_time"
 
 # Up-front work limits (issue #13): a simulation is refused, with the estimate and the parameter to
 # change, before it allocates anything large.  Costs measured on the reference machine (2 cores):
-# about 350 MB peak per 10^6 samples of t in the exact and sampled modes; 3.6 us and 25 us per internal
-# step for the fine-step (shaper in the loop) and the sample-by-sample (saturation/rate limit) runs.
+# about 350 MB peak per 10^6 samples of t in the exact and sampled modes; 1 us and 25 us per internal
+# step for the fine-step (shaper in the loop, run in chunks: its memory is that of the signals kept,
+# issue #15) and the sample-by-sample (saturation/rate limit) runs.
 MAX_BYTES = 2e9
 MAX_SECONDS = 60.0
 _BYTES_PER_SAMPLE = 350.0
-_BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the fine run and its comparison
-_SECONDS_PER_FINE_STEP = 3.6e-6
+# the linear fine run (shaper in the loop, in chunks): at most 12 signals of 8 bytes kept per sample of t
+_BYTES_PER_KEPT_SAMPLE = 8.0 * 12
+_BYTES_PER_FINE_STEP = 8.0 * 40  # repeated inputs, states and outputs of the nonlinear fine run
+_SECONDS_PER_FINE_STEP = 1.0e-6
 _SECONDS_PER_NONLINEAR_STEP = 25e-6
 MAX_SUBSTEPS = 1_000_000
 
@@ -53,20 +56,27 @@ def check_time(t: Any) -> tuple[np.ndarray, float]:
         raise ValueError("t must be a 1-D array of at least 2 times")
     refuse_samples(t.size)
     dt = (t[-1] - t[0]) / (t.size - 1)
-    if dt <= 0 or not np.allclose(np.diff(t), dt, rtol=1e-9, atol=1e-12 * max(1.0, abs(t[-1]))):
+    atol = 1e-12 * max(1.0, abs(t[-1]))
+    piece = 1 << 20  # the steps checked a piece at a time: no temporaries of the grid's size
+    if dt <= 0 or not all(np.allclose(np.diff(t[k: k + piece + 1]), dt, rtol=1e-9, atol=atol)
+                          for k in range(0, t.size - 1, piece)):
         raise ValueError("t must be uniform and increasing")
     return t, float(dt)
 
 
-def refuse_samples(n: int) -> None:
-    v.refuse_large(_BYTES_PER_SAMPLE * n, MAX_BYTES, f"simulating {n:.3g} samples", f"use fewer samples in t "
-                   f"(at most about {MAX_BYTES / _BYTES_PER_SAMPLE:.3g}: a coarser step or a shorter time)", "bytes")
+def refuse_samples(n: int, per: float = _BYTES_PER_KEPT_SAMPLE) -> None:
+    """Refuse ``n`` samples of ``per`` bytes each beyond :data:`MAX_BYTES` (by default the cheapest method's cost;
+    :func:`refuse_work` checks again with the chosen method's)."""
+    v.refuse_large(per * n, MAX_BYTES, f"simulating {n:.3g} samples", f"use fewer samples in t "
+                   f"(at most about {MAX_BYTES / per:.3g}: a coarser step or a shorter time)", "bytes")
 
 
 def refuse_work(layout: RingLayout, S: Shaper | None, n: int, dt: float, sample_rate: Any, substeps: int | None,
                 nonlinear: bool) -> None:
     """Estimate the internal steps of the run chosen by ``simulate`` and refuse it if too large."""
     in_loop = S is not None and layout.shaper is not None
+    if sample_rate is not None or nonlinear or not in_loop:  # every signal over the whole grid, and temporaries
+        refuse_samples(n, _BYTES_PER_SAMPLE)
     if sample_rate is not None:
         steps, fine = float(n), False  # the controller runs at most once per step of t
     elif nonlinear or in_loop:
@@ -76,7 +86,7 @@ def refuse_work(layout: RingLayout, S: Shaper | None, n: int, dt: float, sample_
         return  # exact continuous mode: covered by the per-sample estimate
     change = ("use fewer samples in t" + (", fewer substeps" if sample_rate is None else "")
               + (" or sample_rate (the sampled mode runs at the controller rate)" if sample_rate is None else ""))
-    if fine:
+    if fine and nonlinear:  # the linear fine run works in chunks: the per-sample estimate covers it
         v.refuse_large(_BYTES_PER_FINE_STEP * steps, MAX_BYTES, f"the simulation's {steps:.3g} internal steps",
                        change, "bytes")
     per = _SECONDS_PER_NONLINEAR_STEP if nonlinear else _SECONDS_PER_FINE_STEP

@@ -36,6 +36,7 @@ __all__ = [
     "poly_mul",
     "exact_delayed_response",
     "PowerPropagator",
+    "HeldFilter",
     "block_length",
     "propagate",
 ]
@@ -263,21 +264,77 @@ class PowerPropagator:
             self.powers = _powers(A, size)  # A^j, j = 0 .. size - 1
             self.free = self.powers if C is None else C @ self.powers  # C A^j
             markov = np.concatenate([np.zeros((1, self.free.shape[1], m)), self.free[:-1] @ B])  # C A^(j-1) B
-            self.state_markov = self.powers @ B  # A^j B
-            # the convolution with the Markov parameters by FFT, their transform once for all blocks
+            # A^(size-1-j) B as (n, size, m): the last L of them, read as an (n, L m) matrix without a copy,
+            # give sum_i A^(L-1-i) B u[i] in one product
+            self.state_markov = np.ascontiguousarray((self.powers @ B)[::-1].transpose(1, 0, 2))
+            # the convolution with the Markov parameters by FFT, their transform once for all blocks,
+            # one (frequencies, outputs) slice per input
             self.nfft = sp_fft.next_fast_len(2 * size - 1, real=True)
-            self.markov_f = sp_fft.rfft(markov, self.nfft, axis=0)
+            self.markov_f = np.ascontiguousarray(sp_fft.rfft(markov, self.nfft, axis=0).transpose(2, 0, 1))
+        self.size = size
 
     def block(self, x0: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Outputs at steps ``0 .. L-1`` (columns) from ``x[0] = x0`` under the inputs ``U`` (m, L), and ``x[L]``."""
         L = U.shape[1]
         with np.errstate(over="ignore", invalid="ignore"):
-            spectrum = np.einsum("fpm,fm->fp", self.markov_f, sp_fft.rfft(U.T, self.nfft, axis=0))
+            U_f = sp_fft.rfft(U, self.nfft, axis=1)
+            spectrum = self.markov_f[0] * U_f[0][:, None]
+            for j in range(1, U_f.shape[0]):
+                spectrum += self.markov_f[j] * U_f[j][:, None]
             forced = sp_fft.irfft(spectrum, self.nfft, axis=0)[:L]
             Y = (self.free[:L] @ x0 + forced).T
             # x[L] = A^L x0 + sum_i A^(L-1-i) B u[i], summed directly: no FFT rounding is carried to the next block
-            x_next = self.A @ (self.powers[L - 1] @ x0) + np.einsum("jnm,mj->n", self.state_markov[L - 1:: -1], U)
+            n = x0.size
+            drive = self.state_markov[:, self.size - L:, :].reshape(n, -1) @ np.ascontiguousarray(U.T).reshape(-1)
+            x_next = self.A @ (self.powers[L - 1] @ x0) + drive
             return Y, x_next
+
+
+class HeldFilter:
+    """A delay-free proper transfer function on step ``h`` for a held (ZOH) input, run chunk after chunk.
+
+    Exact at the samples (the balanced realisation discretised by one matrix
+    exponential, run by :class:`PowerPropagator`); the state is carried from
+    one call of :meth:`run` to the next, so a long input can be fed in pieces.
+
+    Parameters
+    ----------
+    tf : TransferFunction
+        Delay-free, proper.
+    h : float
+        Step [s].
+    size : int, optional
+        Longest block of the propagator (default: the first input's length; at most :data:`BLOCK`).
+    """
+
+    def __init__(self, tf: TransferFunction, h: float, size: int | None = None) -> None:
+        A, B, C, D = state_space(tf)
+        self.d = D
+        self.n = A.shape[0]
+        self.x = np.zeros(self.n)
+        self.size = size
+        if self.n:
+            self.Phi, self.Gam = _zoh(A, B, h)
+            self.C = C
+
+    def reset(self) -> None:
+        """Back to rest (zero state)."""
+        self.x = np.zeros(self.n)
+
+    def run(self, u: np.ndarray) -> np.ndarray:
+        """The outputs at the samples of the held input ``u``, continuing from the previous call."""
+        if self.n == 0:
+            return self.d * u
+        if not hasattr(self, "prop"):  # blocks as long as the first chunk (or ``size``), at most BLOCK
+            self.size = block_length(self.n, max(1, self.size or u.size))
+            self.prop = PowerPropagator(self.Phi, self.Gam, self.size, self.C)
+        y = np.empty(u.size)
+        x = self.x
+        for k in range(0, u.size, self.size):
+            Y, x = self.prop.block(x, u[None, k: k + self.size])
+            y[k: k + self.size] = Y[0]
+        self.x = x
+        return y + self.d * u if self.d else y
 
 
 def _powers(A: np.ndarray, size: int) -> np.ndarray:
