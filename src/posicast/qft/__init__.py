@@ -18,6 +18,7 @@ from .analyses import (
     shortest_zvdk,
     zvdk,
 )
+from .architecture import deviated_two_mass, inner_closed_loop, inner_loop, model_matching
 from .design import DEFAULT_STRUCTURE, QFTResult, qft_design
 from .plantset import PlantSet
 from .specs import Verification, nichols_bounds, verify
@@ -26,5 +27,6 @@ from .structure import SECTIONS, Structure
 __all__ = [
     "PlantSet", "qft_design", "QFTResult", "DEFAULT_STRUCTURE", "Structure", "SECTIONS", "verify", "Verification",
     "nichols_bounds", "percent_vibration", "zvdk", "length_vs_vibration", "ShaperLengths", "shortest_zvdk",
-    "ShortestShaper", "length_vs_uncertainty", "UncertaintyLengths", "bandwidth", "Bandwidth",
+    "ShortestShaper", "length_vs_uncertainty", "UncertaintyLengths", "bandwidth", "Bandwidth", "model_matching",
+    "inner_loop", "inner_closed_loop", "deviated_two_mass",
 ]

@@ -1,0 +1,70 @@
+"""Seed 003 Fig. 1 as a loop: channels, stability, simulation, Fig. 10-11 (issue #18)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import posicast
+from posicast import cases
+from posicast.qft import deviated_two_mass, inner_closed_loop, inner_loop, model_matching, zvdk
+
+CASE = cases.ALL["two_mass"]
+FM, G_PAPER, C_IN = CASE.extras["F_m"], CASE.extras["G_qft"], CASE.extras["C_inner"]
+MODE = posicast.Mode(3.2074, 0.0389)
+
+
+def _direct(P, G, F, C, S, s):
+    """Solve Fig. 1's signal equations at one s: y = T_i r_s, r_s = S C (r_b - y)."""
+    Ti = P(s) * G(s) * F(s) / (1 + P(s) * G(s))
+    return S(s) * C(s) * Ti / (1 + S(s) * C(s) * Ti)
+
+
+def test_channels_match_the_signal_equations():
+    S = zvdk(MODE, 0)
+    loop = model_matching(P=CASE.G, G=G_PAPER, F=FM, C=C_IN, S=S)
+    for s in (0.3j, 2.0 + 1.0j, 3.2j):
+        assert abs(loop.transfer("w", "y")(s) - _direct(CASE.G, G_PAPER, FM, C_IN, S, s)) < 1e-9
+    assert len(loop.channels()) == 4 * 5
+    assert loop.is_stable()
+    # the inner loop's own poles are the closed loop's: no spurious integrator pole at 0
+    Ti = inner_closed_loop(CASE.G, G_PAPER, FM)
+    assert posicast.stability(Ti).stable
+    assert Ti.dc_gain == pytest.approx(1.0)
+
+
+def test_simulated_step_follows_the_reference_without_vibration():
+    S = zvdk(MODE, 0)
+    t = np.arange(0.0, 12.0, 0.01)
+    loop = model_matching(P=CASE.G, G=G_PAPER, F=FM, C=C_IN, S=S)
+    r = posicast.simulate(loop, t, w=np.ones_like(t))
+    tail = r.y[t > 8.0]
+    assert abs(tail.mean() - 1.0) < 0.02 and np.ptp(tail) < 0.02
+    # the exact channel has unit DC gain (the integrator of C), as the simulated tail
+    assert loop.transfer("w", "y")(1e-9) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_fig10_time_varying_plant_with_and_without_the_inner_loop():
+    """At 70 % deviation the inner loop keeps the residual vibration small; the PI + ZVD^2 alone does not."""
+    P70 = deviated_two_mass(70.0)
+    t = np.arange(0.0, 40.0, 0.01)
+    w = np.ones_like(t)
+    with_inner = posicast.simulate(model_matching(P=P70, G=G_PAPER, F=FM, C=C_IN, S=zvdk(MODE, 0)), t, w=w)
+    without = posicast.simulate(posicast.control_action(G=P70, C=CASE.C, S=zvdk(MODE, 2)), t, w=w)
+    late = t > 30.0
+    assert np.ptp(with_inner.y[late]) < 0.01
+    assert np.ptp(without.y[late]) > 5 * np.ptp(with_inner.y[late])
+
+
+def test_fig11_control_effort_channel_is_the_inner_controllers_output():
+    L = inner_loop(P=CASE.G, G=G_PAPER, F=FM)
+    s = 2.0j
+    expected = G_PAPER(s) * FM(s) / (1 + CASE.G(s) * G_PAPER(s))
+    assert abs(L.transfer("w", "u")(s) - expected) < 1e-9 * abs(expected)
+
+
+def test_bad_inner_loop_inputs():
+    with pytest.raises(ValueError, match="P must be delay-free"):
+        inner_closed_loop(posicast.TransferFunction.from_poly([1.0], [1.0, 0.0], delay=0.1), G_PAPER, FM)
+    with pytest.raises(TypeError, match="G must be"):
+        model_matching(P=CASE.G, G="x", F=FM, C=C_IN)
