@@ -68,3 +68,19 @@ def test_bad_inner_loop_inputs():
         inner_closed_loop(posicast.TransferFunction.from_poly([1.0], [1.0, 0.0], delay=0.1), G_PAPER, FM)
     with pytest.raises(TypeError, match="G must be"):
         model_matching(P=CASE.G, G="x", F=FM, C=C_IN)
+
+
+# ---------------------------------------------------------------------- the CLI
+def test_cli_qft(capsys, tmp_path):
+    import json
+
+    from posicast.cli import main
+
+    assert main(["qft", "--json", "--plot", str(tmp_path / "n.png")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["feasible"] and out["margins"]["matching"] >= 0 and (tmp_path / "n.png").exists()
+    assert main(["qft", "--stability", "-1"]) == 2
+    assert "stability must be a bound > 0" in capsys.readouterr().err
+    assert main(["qft", "--structure", "real_zero"]) == 2
+    assert "structure must give a proper controller" in capsys.readouterr().err
+    assert main(["qft", "--uncertainty", "150"]) == 2

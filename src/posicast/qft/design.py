@@ -244,7 +244,7 @@ def qft_design(
     bounds = st.bounds(w_lo / 10, w_hi * 10)
     dense = dense_grid(w_lo, w_hi, 1000)
 
-    def solve(grid_: np.ndarray) -> tuple[np.ndarray | None, float]:
+    def solve(grid_: np.ndarray, starts: list[np.ndarray]) -> tuple[np.ndarray | None, float]:
         data = SpecData.at(ps, ref, F, grid_)
         s = 1j * grid_
 
@@ -264,7 +264,7 @@ def qft_design(
             return float(np.log(st.high_frequency_gain(x)))
 
         best, best_cost = None, np.inf
-        for x0 in _starts(st, w_lo, w_hi, center):
+        for x0 in starts:
             # the gain that meets the matching bound at the nominal plant, a feasible-leaning start
             x0 = x0.copy()
             for _ in range(60):
@@ -281,10 +281,11 @@ def qft_design(
         return best, best_cost
 
     x_best = None
-    for _ in range(refinements + 1):
-        x_best, _c = solve(grid)
-        if x_best is None:
+    for _ in range(refinements + 1):  # a refinement starts from the previous design
+        x_new, _c = solve(grid, _starts(st, w_lo, w_hi, center) if x_best is None else [x_best])
+        if x_new is None:
             break
+        x_best = x_new
         G = st.transfer(x_best)
         data = SpecData.at(ps, ref, F, dense)
         T, E = data.values(G.freqresp(dense))
