@@ -34,10 +34,13 @@ __all__ = [
 _DAMPING = ("model", "plant")
 
 
-def _plant_list(plants: Any) -> tuple[TransferFunction, ...]:
+def _plant_list(plants: Any, name: str = "plants") -> tuple[TransferFunction, ...]:
     if isinstance(plants, PlantSet):
         return plants.plants
-    return PlantSet.from_list(v.sequence(plants, "plants")).plants
+    items = v.sequence(plants, name)
+    if not items:
+        raise ValueError(f"{name} must be a non-empty set of transfer functions, got an empty set")
+    return tuple(as_transfer(P, f"{name}[{i}]") for i, P in enumerate(items))
 
 
 def percent_vibration(S: Shaper, plants: Any, *, per_plant: bool = False, damping: str = "model") -> Any:
@@ -66,6 +69,11 @@ def percent_vibration(S: Shaper, plants: Any, *, per_plant: bool = False, dampin
     >>> round(percent_vibration(design("zv", Mode(3.2074, 0.0389)), cases.two_mass_plants()), 2)
     43.53
     """
+    return _percent(S, plants, per_plant, damping, "plants")
+
+
+def _percent(S: Shaper, plants: Any, per_plant: bool, damping: str, name: str) -> Any:
+    """:func:`percent_vibration` with the plants' argument name for messages."""
     S = v.instance_of(S, Shaper, "S", "a shaper (a posicast Shaper, from posicast.design)")
     damping = v.choice(damping, "damping", _DAMPING)
     if not isinstance(per_plant, bool):
@@ -74,10 +82,10 @@ def percent_vibration(S: Shaper, plants: Any, *, per_plant: bool = False, dampin
         raise ValueError(f"S must be designed for a mode (it has none), got {S.name!r}")
     zeta0 = S.modes[0].zeta
     out = []
-    for i, P in enumerate(_plant_list(plants)):
-        modes = modes_of(P, f"plants[{i}]")
+    for i, P in enumerate(_plant_list(plants, name)):
+        modes = modes_of(P, f"{name}[{i}]")
         if not modes:
-            raise ValueError(f"plants[{i}] must have an underdamped mode, got none")
+            raise ValueError(f"{name}[{i}] must have an underdamped mode, got none")
         m = modes[0]
         out.append(100.0 * float(residual_vibration(S, m.omega, zeta0 if damping == "model" else m.zeta)))
     arr = np.array(out)
@@ -141,7 +149,7 @@ def length_vs_vibration(plants: Any, mode: Mode, inner: Any = None, ks: Sequence
     return ShaperLengths(
         np.array(ks), np.array([S.duration for S in shapers]),
         np.array([percent_vibration(S, plants) for S in shapers]),
-        np.array([percent_vibration(S, inner_set) for S in shapers]),
+        np.array([_percent(S, inner_set, False, "model", "inner") for S in shapers]),
     )
 
 
@@ -177,7 +185,8 @@ def shortest_zvdk(plants: Any, mode: Mode, vtol: float = 10.0, kmax: int = 30) -
         V = percent_vibration(S, plants)
         if V <= vtol:
             return ShortestShaper(k, float(S.duration), V)
-    raise ValueError(f"no ZVD^k with k <= {kmax} meets V <= {vtol:g} % over the plant set; raise kmax")
+    raise ValueError(f"vtol = {vtol:g} % is met by no ZVD^k with k <= kmax = {kmax} over the plant set; "
+                     "raise kmax or vtol")
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _validate as v
 from ..cases import two_mass_plant
 from ..core.transfer import TransferFunction, as_transfer
 from ..loops.loop import Loop, feedforward
@@ -80,8 +81,15 @@ def inner_closed_loop(P: Any, G: Any, F: Any) -> TransferFunction:
         sc = tf.to_scipy()
         polys.append((np.asarray(sc.num, float), np.asarray(sc.den, float)))
     (nP, dP), (nG, dG), (nF, dF) = polys
-    char = np.polyadd(np.convolve(dP, dG), np.convolve(nP, nG))
-    return TransferFunction.from_poly(np.convolve(np.convolve(nP, nG), nF), np.convolve(dF, char))
+    with np.errstate(all="ignore"):
+        char = np.polyadd(np.convolve(dP, dG), np.convolve(nP, nG))
+        num, den = np.convolve(np.convolve(nP, nG), nF), np.convolve(dF, char)
+    if not (np.all(np.isfinite(num)) and np.all(np.isfinite(den))):
+        raise ValueError("P, G and F must have coefficients whose products stay finite (the inner loop overflows); "
+                         "rescale them")
+    if not np.any(den):
+        raise ValueError("P, G and F give an ill-posed inner loop (1 + P G identically zero)")
+    return TransferFunction.from_poly(num, den)
 
 
 def deviated_two_mass(uncertainty: float) -> TransferFunction:
@@ -91,5 +99,8 @@ def deviated_two_mass(uncertainty: float) -> TransferFunction:
     >>> round(modes_of(deviated_two_mass(70.0))[0].omega, 3)
     1.783
     """
-    f = 1.0 - float(np.clip(uncertainty, -1e9, 1e9)) / 100.0
+    u = v.real(uncertainty, "uncertainty")
+    if not -1e6 <= u < 100.0:
+        raise ValueError(f"uncertainty must be in [-1e6, 100) percent (100 % removes c1, c2, k2), got {u:g}")
+    f = 1.0 - u / 100.0
     return two_mass_plant(50.0 * f, 0.1 * f, 10.0 * f)

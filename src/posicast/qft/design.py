@@ -32,7 +32,7 @@ from .. import _validate as v
 from ..core.transfer import TransferFunction, as_transfer
 from .plantset import PlantSet
 from .specs import SpecData, Verification, dense_grid, nichols_bounds, verify
-from .structure import Structure
+from .structure import SECTIONS, Structure
 
 __all__ = ["QFTResult", "qft_design", "DEFAULT_STRUCTURE"]
 
@@ -217,7 +217,10 @@ def qft_design(
         raise ValueError("reference must be delay-free (rational)")
     gamma = _check_spec(stability, "stability")
     delta = _check_spec(matching, "matching")
-    st = Structure(tuple(structure))
+    secs = tuple(v.sequence(structure, "structure"))
+    for sec in secs:
+        v.choice(sec, "structure section", tuple(SECTIONS))
+    st = Structure(secs)
     if st.relative_degree < 0:
         raise ValueError(f"structure must give a proper controller (relative degree >= 0), got "
                          f"{st.relative_degree} for {st.sections}: add poles")
@@ -230,11 +233,12 @@ def qft_design(
         freqs = np.array([0.05, 0.1, 0.5, 1.0, 2.0, 3.2, 5.0, 20.0])
     else:
         freqs = np.unique(v.strict_real_array(frequencies, "frequencies"))
-        if freqs.size == 0 or np.any(freqs <= 0):
-            raise ValueError("frequencies must be non-empty and > 0 [rad/s]")
+        if freqs.size == 0 or np.any(freqs <= 0) or freqs.size > 1000 or freqs.max() / freqs.min() > 1e12:
+            raise ValueError(f"frequencies must be 1 to 1000 values > 0 [rad/s] spanning at most 12 decades, got "
+                             f"{freqs.size} values")
     margin = v.nonnegative(stability_margin, "stability_margin")
-    refinements = v.integer(refinements, "refinements", 0)
-    maxiter = v.integer(maxiter, "maxiter", 1)
+    refinements = v.integer_in_range(refinements, "refinements", 0, 20)
+    maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
 
     lo, hi = _feature_range(ps, ref)
     w_lo, w_hi = min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30
@@ -255,10 +259,14 @@ def qft_design(
             for pn, pd in polys:
                 a, b = np.convolve(pd, den), np.convolve(pn, num)
                 n = max(a.size, b.size)
-                r = np.roots(np.pad(a, (n - a.size, 0)) + np.pad(b, (n - b.size, 0)))
-                ab.append(-margin - r.real.max())
+                ch = np.pad(a, (n - a.size, 0)) + np.pad(b, (n - b.size, 0))
+                r = np.roots(ch) if np.all(np.isfinite(ch)) else np.array([1e6])
+                ab.append(-margin - (r.real.max() if r.size else -1e6))
             # the worst plant at each frequency, with a back-off so that the dense check passes between points
-            return np.concatenate([np.log(gamma * _BACKOFF / T.max(0)), np.log(delta * _BACKOFF / E.max(0)), ab])
+            with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+                out = np.concatenate([np.log(gamma * _BACKOFF) - np.log(T.max(0)),
+                                      np.log(delta * _BACKOFF) - np.log(E.max(0)), ab])
+            return np.nan_to_num(out, nan=-1e6, posinf=1e6, neginf=-1e6)
 
         def cost(x: np.ndarray) -> float:
             return float(np.log(st.high_frequency_gain(x)))
@@ -268,10 +276,12 @@ def qft_design(
             # the gain that meets the matching bound at the nominal plant, a feasible-leaning start
             x0 = x0.copy()
             for _ in range(60):
-                if np.min(cons(x0)[: 2 * grid_.size]) > -0.5 or x0[0] > 25:
+                with np.errstate(all="ignore"):
+                    ok = np.min(cons(x0)[: 2 * grid_.size]) > -0.5
+                if ok or x0[0] > 25:
                     break
                 x0[0] += 0.5
-            with warnings.catch_warnings():
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
                 warnings.simplefilter("ignore", RuntimeWarning)
                 res = minimize(cost, x0, method="SLSQP", bounds=bounds,
                                constraints=[{"type": "ineq", "fun": cons}],

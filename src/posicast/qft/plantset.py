@@ -72,12 +72,14 @@ class PlantSet:
         checked = []
         for i, P in enumerate(plants):
             tf = as_transfer(P, f"plants[{i}]")
+            if tf.num.is_zero:
+                raise ValueError(f"plants[{i}] must not be identically zero (no loop can be closed), got 0")
             if tf.has_delays:
                 raise ValueError(f"plants[{i}] must be delay-free (rational) for a QFT design, got delays "
                                  f"{tf.max_delay:g} s")
             checked.append(tf)
         object.__setattr__(self, "plants", tuple(checked))
-        object.__setattr__(self, "nominal_index", v.index(self.nominal_index, "nominal", len(checked)))
+        object.__setattr__(self, "nominal_index", v.index(self.nominal_index, "nominal_index", len(checked)))
         if self.parameters and len(self.parameters) != len(checked):
             raise ValueError(f"parameters must have one entry per plant ({len(checked)}), got {len(self.parameters)}")
 
@@ -103,7 +105,10 @@ class PlantSet:
     @classmethod
     def from_list(cls, plants: Sequence[Any], nominal: int = 0) -> PlantSet:
         """A set from a list of plants (anything :func:`posicast.as_transfer` accepts)."""
-        return cls(tuple(plants), nominal)
+        items = tuple(v.sequence(plants, "plants"))
+        if items:
+            v.index(nominal, "nominal", len(items))
+        return cls(items, nominal)
 
     @classmethod
     def from_ranges(
@@ -157,6 +162,8 @@ class PlantSet:
         names = tuple(ranges)
         nom = {k: 0.5 * (lows[k] + highs[k]) for k in names}
         if nominal is not None:
+            if not isinstance(nominal, Mapping):
+                raise TypeError(f"nominal must be a mapping name -> value, got {type(nominal).__name__}")
             for k, val in dict(nominal).items():
                 v.choice(k, "nominal parameter", names)
                 nom[k] = v.real(val, f"nominal[{k!r}]")

@@ -24,7 +24,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..core.transfer import TransferFunction
+from .. import _validate as v
+from ..core.transfer import TransferFunction, as_transfer
+from ..spectra.rootfinder import RootFindingError
 from ..spectra.systems import stability
 from .plantset import PlantSet
 
@@ -54,6 +56,23 @@ class SpecData:
         T = L * S
         F = self.Fm if self.F is None else self.F
         return np.abs(T), np.abs(T * F - self.Fm)
+
+
+_NO_CONTROLLER = object()  # nichols_bounds has no controller to check
+
+
+def _checked(plants: Any, G: Any, F: Any, reference: Any, gamma: Any, delta: Any, gname: str,
+             dname: str) -> tuple[PlantSet, Any, Any, TransferFunction, float, float]:
+    """The arguments of :func:`verify` and :func:`nichols_bounds`, checked (named errors)."""
+    ps = plants if isinstance(plants, PlantSet) else PlantSet.from_list(v.sequence(plants, "plants"))
+    out_G = None if G is _NO_CONTROLLER else as_transfer(G, "G")
+    out_F = None if F is None else as_transfer(F, "F")
+    ref = as_transfer(reference, "reference")
+    for x, nm in ((out_G, "G"), (out_F, "F"), (ref, "reference")):
+        if x is not None and x.has_delays:
+            raise ValueError(f"{nm} must be delay-free (rational), got delay {x.max_delay:g} s")
+    g, d = v.positive(gamma, gname), v.positive(delta, dname)
+    return ps, out_G, out_F, ref, g, d
 
 
 def dense_grid(lo: float, hi: float, per_decade: int = 2000) -> np.ndarray:
@@ -93,6 +112,7 @@ class Verification:
 def verify(plants: PlantSet, G: TransferFunction, F: TransferFunction | None, reference: TransferFunction,
            gamma: float, delta: float, w: np.ndarray | None = None) -> Verification:
     """Check ``G`` and ``F`` over every plant on a dense grid, with certified inner-loop stability."""
+    plants, G, F, reference, gamma, delta = _checked(plants, G, F, reference, gamma, delta, "gamma", "delta")
     if w is None:
         w = dense_grid(1e-3, 1e4, 1000)
     data = SpecData.at(plants, reference, F, w)
@@ -104,16 +124,34 @@ def verify(plants: PlantSet, G: TransferFunction, F: TransferFunction | None, re
     stable, abscissa = [], []
     for P in plants:
         loop = (P * G).feedback()
-        stable.append(bool(stability(loop).stable))
-        r = np.roots(loop.to_scipy().den)
+        stable.append(_certified_stable(loop))
+        with np.errstate(all="ignore"):
+            r = np.roots(loop.to_scipy().den)
         abscissa.append(float(r.real.max()) if r.size else -np.inf)
-    margins = {"stability": float(20 * np.log10(gamma / worst["stability"])),
-               "matching": float(20 * np.log10(delta / worst["matching"])),
-               "inner_loops": float(max(abscissa))}
+    with np.errstate(divide="ignore", over="ignore"):
+        margins = {"stability": float(20 * (np.log10(gamma) - np.log10(worst["stability"]))),
+                   "matching": float(20 * (np.log10(delta) - np.log10(worst["matching"]))),
+                   "inner_loops": float(max(abscissa))}
     violated = tuple(n for n in ("stability", "matching") if margins[n] < 0)
     if not all(stable):
         violated += ("inner_loops",)
     return Verification(margins, worst, tuple(stable), violated)
+
+
+def _certified_stable(loop: TransferFunction) -> bool:
+    """:func:`posicast.stability` of an inner closed loop; False when it cannot be certified.
+
+    A characteristic polynomial whose coefficients span more than 1e60 (an absurd gain) is not
+    certified (False), nor is one the root finder gives up on within its budget.
+    """
+    den = np.abs(np.asarray(loop.to_scipy().den, float))
+    nz = den[den > 0]
+    if nz.size == 0 or not np.all(np.isfinite(nz)) or nz.max() / nz.min() > 1e60:
+        return False
+    try:
+        return bool(stability(loop, max_evaluations=2e6, timeout=2.0).stable)
+    except (RootFindingError, ValueError):
+        return False
 
 
 def nichols_bounds(plants: PlantSet, frequencies: np.ndarray, reference: TransferFunction,
@@ -128,6 +166,11 @@ def nichols_bounds(plants: PlantSet, frequencies: np.ndarray, reference: Transfe
     -------
     ndarray of bool, shape ``(frequencies, gains, phases)``: True where ``L_0`` may lie.
     """
+    plants, _, prefilter, reference, gamma, delta = _checked(plants, _NO_CONTROLLER, prefilter, reference, gamma, delta,
+                                                             "gamma", "delta")
+    frequencies = np.atleast_1d(v.strict_real_array(frequencies, "frequencies")).reshape(-1)
+    if frequencies.size == 0 or frequencies.size > 1000:
+        raise ValueError(f"frequencies must hold 1 to 1000 values, got {frequencies.size}")
     phases = np.linspace(-360.0, 0.0, 181) if phases is None else phases
     gains_db = np.linspace(-40.0, 60.0, 201) if gains_db is None else gains_db
     tmpl = plants.templates(frequencies)  # (w, k)

@@ -71,9 +71,9 @@ class Structure:
     sections: tuple[str, ...]
 
     def __post_init__(self) -> None:
-        secs = tuple(v.sequence(self.sections, "structure"))
+        secs = tuple(v.sequence(self.sections, "sections"))
         for s in secs:
-            v.choice(s, "structure section", tuple(SECTIONS))
+            v.choice(s, "sections[]", tuple(SECTIONS))
         object.__setattr__(self, "sections", secs)
 
     @property
