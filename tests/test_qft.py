@@ -210,3 +210,21 @@ def test_bad_plant_sets():
         percent_vibration(0.5, cases.two_mass_plants())
     with pytest.raises(ValueError, match="no ZVD"):
         shortest_zvdk(cases.two_mass_plants(), MODE, vtol=1e-9, kmax=2)
+
+
+def test_check_of_the_printed_design_and_its_nichols_chart(plants):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from posicast.qft import QFTResult
+
+    r = QFTResult.check(plants, FM, G_PAPER, stability=1.413, matching=0.1)
+    assert not r.feasible and r.violated == ("matching",) and r.high_frequency_gain == np.inf
+    assert r.margins["matching"] == pytest.approx(20 * np.log10(0.1 / 0.2973), abs=0.01)
+    fig, ax = r.plot()
+    assert len(ax.lines) >= 2
+    plt.close(fig)
+    with pytest.raises(ValueError, match="matching must be a bound > 0"):
+        QFTResult.check(plants, FM, G_PAPER, stability=1.413, matching=-0.1)

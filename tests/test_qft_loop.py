@@ -84,3 +84,28 @@ def test_cli_qft(capsys, tmp_path):
     assert main(["qft", "--structure", "real_zero"]) == 2
     assert "structure must give a proper controller" in capsys.readouterr().err
     assert main(["qft", "--uncertainty", "150"]) == 2
+
+
+# ---------------------------------------------------------------------- the robot case (seed 003 experiment)
+def test_robot_inner_loop_with_the_printed_gain_is_unstable():
+    """Seed 003 closes the motor loop with G(s) = 3 on the printed P1: 1 + 3 P1 has roots 4.15 +/- 38.06j."""
+    from scipy.optimize import brentq
+
+    from posicast.qft import PlantSet, QFTResult, qft_design
+
+    rb = cases.ALL["flexible_joint_robot"]
+    P1, Fm = rb.G, rb.extras["F_m"]
+    st = posicast.stability((3.0 * P1).feedback())
+    assert not st.stable
+    np.testing.assert_allclose(sorted(st.unstable_roots.imag), [-38.059, 38.059], atol=1e-3)
+    assert st.unstable_roots.real[0] == pytest.approx(4.1513, abs=1e-3)
+    # the critical gain from the phase crossover of P1 (independent of any root finder): 1.3167 at 32.19 rad/s
+    w180 = brentq(lambda w: complex(1.0 / P1(1j * w)).imag, 25.0, 40.0)
+    g_crit = -complex(1.0 / P1(1j * w180)).real
+    assert g_crit == pytest.approx(1.3167, abs=1e-4) and w180 == pytest.approx(32.187, abs=1e-3)
+    assert posicast.stability((0.99 * g_crit * P1).feedback()).stable
+    # the paper's specs (eq. 2-3) with its F_m = 25 / (s^2 + 7 s + 25): G = 3 fails, a designed lead meets them
+    printed = QFTResult.check([P1], Fm, 3.0, stability=1.413, matching=0.1)
+    assert not printed.feasible and "inner_loops" in printed.violated
+    r = qft_design(PlantSet.from_list([P1]), Fm, stability=1.413, matching=0.1, structure=("lead",))
+    assert r.feasible and posicast.stability((r.controller * P1).feedback()).stable

@@ -45,7 +45,7 @@ def inner_loop(*, P: Any, G: Any, F: Any) -> Loop:
     return feedforward(G=as_transfer(P, "P"), C=as_transfer(G, "G"), S=as_transfer(F, "F"))
 
 
-def model_matching(*, P: Any, G: Any, F: Any, C: Any, S: Any = None) -> Loop:
+def model_matching(*, P: Any, G: Any, F: Any, C: Any, S: Any = None, load: Any = None) -> Loop:
     """Seed 003 Fig. 1: the outer loop of ``C`` and the shaper ``S`` around the inner loop ``(P, G, F)``.
 
     Parameters
@@ -58,13 +58,16 @@ def model_matching(*, P: Any, G: Any, F: Any, C: Any, S: Any = None) -> Loop:
         The outer controller (seed 003 eq. 5: ``C = 1.742 (1 + 0.19 s) / s``).
     S : Shaper, optional
         The input shaper ``IS`` (designed for the reference model).
+    load : plant-like, optional
+        A flexible part outside both loops, ``y = load z`` (the robot's link ``P2``, whose
+        motor position ``z = x1`` is fed back); default 1.
 
     Returns
     -------
     Loop
         Architecture ``"model_matching"``; its ``G`` is the inner closed loop ``P G F / (1 + P G)``.
     """
-    return Loop("model_matching", G=inner_closed_loop(P, G, F), C=C, S=S)
+    return Loop("model_matching", G=inner_closed_loop(P, G, F), C=C, S=S, F=load)
 
 
 def inner_closed_loop(P: Any, G: Any, F: Any) -> TransferFunction:

@@ -78,6 +78,34 @@ class QFTResult:
     specs: tuple[float, float] = (1.413, 0.1)
     frequencies: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
+    @classmethod
+    def check(cls, plants: Any, reference: Any, G: Any, F: Any = None, *, stability: float, matching: float,
+              frequencies: Any = None) -> QFTResult:
+        """The result for a given controller ``G`` and prefilter ``F`` (default ``F = F_m``), checked like a design.
+
+        For a printed design (seed 003's ``G``): its margins, violated bounds and Nichols chart.
+        The high-frequency gain of an improper ``G`` is infinite.
+
+        >>> from posicast import cases
+        >>> c = cases.ALL["two_mass"]
+        >>> r = QFTResult.check(PlantSet.two_mass(), c.extras["F_m"], c.extras["G_qft"], stability=1.413, matching=0.1)
+        >>> r.feasible, r.violated, r.high_frequency_gain
+        (False, ('matching',), inf)
+        """
+        ps = plants if isinstance(plants, PlantSet) else PlantSet.from_list(v.sequence(plants, "plants"))
+        ref = as_transfer(reference, "reference")
+        Gt = as_transfer(G, "G")
+        Ft = None if F is None else as_transfer(F, "F")
+        gamma, delta = _check_spec(stability, "stability"), _check_spec(matching, "matching")
+        freqs = _frequencies(frequencies)
+        lo, hi = _feature_range(ps, ref)
+        dense = dense_grid(min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30, 1000)
+        chk = verify(ps, Gt, Ft, ref, gamma, delta, dense)
+        num, den = (np.trim_zeros(np.asarray(x, float), "f") for x in (Gt.to_scipy().num, Gt.to_scipy().den))
+        hf = float("inf") if num.size > den.size else (abs(num[0] / den[0]) if num.size == den.size else 0.0)
+        return cls(Gt, ref if Ft is None else Ft, chk.ok, chk.margins, chk.violated, hf, {}, chk, ps, ref,
+                   (gamma, delta), freqs)
+
     def summary(self) -> str:
         """A few lines: feasibility, margins, cost and parameters."""
         state = "feasible" if self.feasible else f"INFEASIBLE (violated: {', '.join(self.violated)})"
@@ -127,6 +155,17 @@ def _check_spec(value: Any, name: str) -> float:
     if x <= 0:
         raise ValueError(f"{name} must be a bound > 0 on a magnitude (absolute, not dB), got {x:g}")
     return x
+
+
+def _frequencies(frequencies: Any) -> np.ndarray:
+    """The QFT template frequencies (default: 8 from 0.05 to 20 rad/s, as in seed 003's Fig. 3)."""
+    if frequencies is None:
+        return np.array([0.05, 0.1, 0.5, 1.0, 2.0, 3.2, 5.0, 20.0])
+    freqs = np.unique(v.strict_real_array(frequencies, "frequencies"))
+    if freqs.size == 0 or np.any(freqs <= 0) or freqs.size > 1000 or freqs.max() / freqs.min() > 1e12:
+        raise ValueError(f"frequencies must be 1 to 1000 values > 0 [rad/s] spanning at most 12 decades, got "
+                         f"{freqs.size} values")
+    return freqs
 
 
 def _feature_range(plants: PlantSet, reference: TransferFunction) -> tuple[float, float]:
@@ -229,13 +268,7 @@ def qft_design(
         num, den = F.to_scipy().num, F.to_scipy().den
         if F.has_delays or len(np.trim_zeros(num, "f")) > len(np.trim_zeros(den, "f")):
             raise ValueError("prefilter must be a proper, delay-free transfer function")
-    if frequencies is None:
-        freqs = np.array([0.05, 0.1, 0.5, 1.0, 2.0, 3.2, 5.0, 20.0])
-    else:
-        freqs = np.unique(v.strict_real_array(frequencies, "frequencies"))
-        if freqs.size == 0 or np.any(freqs <= 0) or freqs.size > 1000 or freqs.max() / freqs.min() > 1e12:
-            raise ValueError(f"frequencies must be 1 to 1000 values > 0 [rad/s] spanning at most 12 decades, got "
-                             f"{freqs.size} values")
+    freqs = _frequencies(frequencies)
     margin = v.nonnegative(stability_margin, "stability_margin")
     refinements = v.integer_in_range(refinements, "refinements", 0, 20)
     maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
