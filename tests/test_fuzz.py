@@ -845,6 +845,14 @@ def entry_table() -> list[Entry]:
           {"P": "system", "G": "system", "F": "system"}),
         E("deviated_two_mass", lambda **k: qft.deviated_two_mass(**k), lambda: {"uncertainty": 35.0},
           {"uncertainty": "real"}),
+        E("root_locus", lambda **k: qft.root_locus(**k), lambda: {"plants": qplants(), "C": CTRL(), "gains": [0.5, 2.0]},
+          {"plants": "object", "C": "system", "gains": "array"}),
+        E("control_effort", lambda **k: qft.control_effort(**k),
+          lambda: {"P": PLANT(), "G": ([5.0, 5.0], [0.05, 1.0]), "F": ([4.0], [1.0, 0.4, 4.0]),
+                   "C": ([0.5, 1.0], [1.0, 0.0]), "S": posicast.design("zv", posicast.Mode(2.0, 0.1)),
+                   "t": np.arange(0.0, 5.0, 0.01)},
+          {"P": "system", "G": "system", "F": "system", "C": "system", "S": "object", "t": "array", "w": "array"},
+          timeout=6.0, pool_limit=10, examples=2),
     ]
     for name in ("simulation_example", "flexible_link", "gantry_crane", "two_mass", "flexible_joint_robot",
                  "sampled_28hz", "two_mass_plants"):
@@ -881,6 +889,8 @@ NOT_CALLED = {
     "ShaperLengths": "result of length_vs_vibration",
     "ShortestShaper": "result of shortest_zvdk",
     "UncertaintyLengths": "result of length_vs_uncertainty",
+    "RootLocus": "result of root_locus (plot driven in tests/test_qft_loop.py)",
+    "ControlEffort": "result of control_effort",
     "cases": "module: its __all__ is walked",
     "DivergenceWarning": "warning class",
     "RootFindingError": "exception class",

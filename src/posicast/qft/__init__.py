@@ -20,6 +20,7 @@ from .analyses import (
 )
 from .architecture import deviated_two_mass, inner_closed_loop, inner_loop, model_matching
 from .design import DEFAULT_STRUCTURE, QFTResult, qft_design
+from .figures import ControlEffort, RootLocus, control_effort, root_locus
 from .plantset import PlantSet
 from .specs import Verification, nichols_bounds, verify
 from .structure import SECTIONS, Structure
@@ -28,5 +29,6 @@ __all__ = [
     "PlantSet", "qft_design", "QFTResult", "DEFAULT_STRUCTURE", "Structure", "SECTIONS", "verify", "Verification",
     "nichols_bounds", "percent_vibration", "zvdk", "length_vs_vibration", "ShaperLengths", "shortest_zvdk",
     "ShortestShaper", "length_vs_uncertainty", "UncertaintyLengths", "bandwidth", "Bandwidth", "model_matching",
-    "inner_loop", "inner_closed_loop", "deviated_two_mass",
+    "inner_loop", "inner_closed_loop", "deviated_two_mass", "root_locus", "RootLocus", "control_effort",
+    "ControlEffort",
 ]
