@@ -124,8 +124,8 @@ class QFTResult:
         import matplotlib.pyplot as plt
 
         fig, ax = plt.subplots(figsize=(7, 5)) if ax is None else (v.axes(ax).figure, ax)
-        phases = np.linspace(-360.0, 0.0, 241)
-        gains = np.linspace(-40.0, 80.0, 241)
+        phases = np.linspace(-360.0, 0.0, 181)
+        gains = np.linspace(-40.0, 80.0, 161)
         F = None if self.prefilter is self.reference else self.prefilter
         ok = nichols_bounds(self.plants, self.frequencies, self.reference, F, *self.specs, phases, gains)
         colors = plt.cm.viridis(np.linspace(0, 0.9, len(self.frequencies)))

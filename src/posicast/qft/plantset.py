@@ -24,7 +24,6 @@ at chosen frequencies (a ``(frequencies, plants)`` complex array).
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
