@@ -228,3 +228,24 @@ def test_check_of_the_printed_design_and_its_nichols_chart(plants):
     plt.close(fig)
     with pytest.raises(ValueError, match="matching must be a bound > 0"):
         QFTResult.check(plants, FM, G_PAPER, stability=1.413, matching=-0.1)
+
+
+def test_disturbance_bound(plants, design):
+    """Output-disturbance rejection |1 / (1 + P G)| <= sigma up to omega_max, checked and drawn as a bound."""
+    from posicast.qft import QFTResult, nichols_bounds
+
+    G = design.controller
+    w = dense_grid(1e-3, 1.0, 2000)
+    worst = max(np.max(np.abs(1.0 / (1.0 + P.freqresp(w) * G.freqresp(w)))) for P in plants)
+    ok = QFTResult.check(plants, FM, G, stability=1.413, matching=0.1, disturbance=(1.01 * worst, 1.0))
+    assert ok.feasible and ok.margins["disturbance"] == pytest.approx(20 * np.log10(1.01), abs=0.01)
+    bad = QFTResult.check(plants, FM, G, stability=1.413, matching=0.1, disturbance=(0.5 * worst, 1.0))
+    assert bad.violated == ("disturbance",)
+    freqs = np.array([0.1, 1.0])
+    plain = nichols_bounds(plants, freqs, FM, None, 1.413, 0.1)
+    strict = nichols_bounds(plants, freqs, FM, None, 1.413, 0.1, disturbance=1e-3)
+    assert strict.sum() < plain.sum() and not np.any(strict & ~plain)
+    with pytest.raises(ValueError, match="disturbance must be > 0"):
+        qft_design(plants, FM, stability=1.413, matching=0.1, disturbance=-1.0)
+    with pytest.raises(TypeError, match="disturbance sigma must be a real number"):
+        qft_design(plants, FM, stability=1.413, matching=0.1, disturbance=("a", 1.0))

@@ -31,7 +31,7 @@ from scipy.optimize import minimize
 from .. import _validate as v
 from ..core.transfer import TransferFunction, as_transfer
 from .plantset import PlantSet
-from .specs import SpecData, Verification, dense_grid, nichols_bounds, verify
+from .specs import SpecData, Verification, dense_grid, disturbance_spec, nichols_bounds, verify
 from .structure import SECTIONS, Structure
 
 __all__ = ["QFTResult", "qft_design", "DEFAULT_STRUCTURE"]
@@ -54,7 +54,7 @@ class QFTResult:
     feasible : bool
         Every bound met on the dense grid and every inner loop certified stable.
     margins : mapping
-        Per bound: ``"stability"`` and ``"matching"`` in dB (>= 0 met), ``"inner_loops"``
+        Per bound: ``"stability"``, ``"matching"`` (and ``"disturbance"``) in dB (>= 0 met), ``"inner_loops"``
         the largest spectral abscissa [rad/s] (< 0 met).
     violated : tuple of str
         The names of the failed bounds (empty when feasible).
@@ -77,10 +77,11 @@ class QFTResult:
     reference: TransferFunction = field(repr=False)
     specs: tuple[float, float] = (1.413, 0.1)
     frequencies: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    disturbance: tuple[float, float] | None = None
 
     @classmethod
     def check(cls, plants: Any, reference: Any, G: Any, F: Any = None, *, stability: float, matching: float,
-              frequencies: Any = None) -> QFTResult:
+              frequencies: Any = None, disturbance: Any = None) -> QFTResult:
         """The result for a given controller ``G`` and prefilter ``F`` (default ``F = F_m``), checked like a design.
 
         For a printed design (seed 003's ``G``): its margins, violated bounds and Nichols chart.
@@ -100,18 +101,21 @@ class QFTResult:
         freqs = _frequencies(frequencies)
         lo, hi = _feature_range(ps, ref)
         dense = dense_grid(min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30, 1000)
-        chk = verify(ps, Gt, Ft, ref, gamma, delta, dense)
+        dist = disturbance_spec(disturbance)
+        chk = verify(ps, Gt, Ft, ref, gamma, delta, dense, dist)
         num, den = (np.trim_zeros(np.asarray(x, float), "f") for x in (Gt.to_scipy().num, Gt.to_scipy().den))
         hf = float("inf") if num.size > den.size else (abs(num[0] / den[0]) if num.size == den.size else 0.0)
         return cls(Gt, ref if Ft is None else Ft, chk.ok, chk.margins, chk.violated, hf, {}, chk, ps, ref,
-                   (gamma, delta), freqs)
+                   (gamma, delta), freqs, dist)
 
     def summary(self) -> str:
         """A few lines: feasibility, margins, cost and parameters."""
         state = "feasible" if self.feasible else f"INFEASIBLE (violated: {', '.join(self.violated)})"
         lines = [f"QFT design over {len(self.plants)} plants: {state}",
                  f"  margins: stability {self.margins['stability']:+.2f} dB, matching "
-                 f"{self.margins['matching']:+.2f} dB, inner loops abscissa {self.margins['inner_loops']:.3g} rad/s",
+                 f"{self.margins['matching']:+.2f} dB, "
+                 + (f"disturbance {self.margins['disturbance']:+.2f} dB, " if "disturbance" in self.margins else "")
+                 + f"inner loops abscissa {self.margins['inner_loops']:.3g} rad/s",
                  f"  high-frequency gain {self.high_frequency_gain:.6g}",
                  "  " + ", ".join(f"{k} = {x:.5g}" for k, x in self.parameters.items())]
         return "\n".join(lines)
@@ -127,7 +131,8 @@ class QFTResult:
         phases = np.linspace(-360.0, 0.0, 181)
         gains = np.linspace(-40.0, 80.0, 161)
         F = None if self.prefilter is self.reference else self.prefilter
-        ok = nichols_bounds(self.plants, self.frequencies, self.reference, F, *self.specs, phases, gains)
+        ok = nichols_bounds(self.plants, self.frequencies, self.reference, F, *self.specs, phases, gains,
+                            disturbance=self.disturbance)
         colors = plt.cm.viridis(np.linspace(0, 0.9, len(self.frequencies)))
         for i, w in enumerate(self.frequencies):
             if ok[i].all() or not ok[i].any():
@@ -238,6 +243,7 @@ def qft_design(
     frequencies: Any = None,
     structure: Sequence[str] = DEFAULT_STRUCTURE,
     prefilter: Any = None,
+    disturbance: Any = None,
     stability_margin: float = 0.05,
     refinements: int = 3,
     maxiter: int = 300,
@@ -261,6 +267,9 @@ def qft_design(
         The controller's sections (:class:`~posicast.qft.structure.Structure`).
     prefilter : plant-like, optional
         A fixed prefilter ``F``; default ``F = F_m`` (the paper's choice).
+    disturbance : float or (float, float), optional
+        Output-disturbance rejection ``|1 / (1 + P G)| <= sigma``: ``sigma``, or ``(sigma, omega_max)``
+        for frequencies up to ``omega_max`` rad/s.
     stability_margin : float
         Every inner closed loop's poles at ``Re s <= -stability_margin`` during the design.
     refinements : int
@@ -298,6 +307,7 @@ def qft_design(
         if F.has_delays or len(np.trim_zeros(num, "f")) > len(np.trim_zeros(den, "f")):
             raise ValueError("prefilter must be a proper, delay-free transfer function")
     freqs = _frequencies(frequencies)
+    dist = disturbance_spec(disturbance)
     margin = v.nonnegative(stability_margin, "stability_margin")
     refinements = v.integer_in_range(refinements, "refinements", 0, 20)
     maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
@@ -316,12 +326,14 @@ def qft_design(
 
         def cons(x: np.ndarray) -> np.ndarray:
             num, den = st.polynomials(x)
-            T, E = data.values(np.polyval(num, s) / np.polyval(den, s))
+            T, E, S = data.values(np.polyval(num, s) / np.polyval(den, s))
             ab = -margin - _abscissae(polys, num, den)
             # the worst plant at each frequency, with a back-off so that the dense check passes between points
             with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-                out = np.concatenate([np.log(gamma * _BACKOFF) - np.log(T.max(0)),
-                                      np.log(delta * _BACKOFF) - np.log(E.max(0)), np.atleast_1d(ab)])
+                parts = [np.log(gamma * _BACKOFF) - np.log(T.max(0)), np.log(delta * _BACKOFF) - np.log(E.max(0))]
+                if dist is not None:
+                    parts.append((np.log(dist[0] * _BACKOFF) - np.log(S.max(0)))[grid_ <= dist[1]])
+                out = np.concatenate(parts + [np.atleast_1d(ab)])
             return np.nan_to_num(out, nan=-1e6, posinf=1e6, neginf=-1e6)
 
         def cost(x: np.ndarray) -> float:
@@ -354,8 +366,10 @@ def qft_design(
         x_best = x_new
         G = st.transfer(x_best)
         data = SpecData.at(ps, ref, F, dense)
-        T, E = data.values(G.freqresp(dense))
+        T, E, S = data.values(G.freqresp(dense))
         bad = (T.max(0) > gamma) | (E.max(0) > delta)
+        if dist is not None:
+            bad |= (S.max(0) > dist[0]) & (dense <= dist[1])
         if not bad.any():
             break
         grid = np.union1d(grid, dense[bad][:: max(1, int(bad.sum()) // 40)])
@@ -363,6 +377,6 @@ def qft_design(
         x_best = _starts(st, w_lo, w_hi, center)[0]
     G = st.transfer(x_best)
     Ffin = ref if F is None else F
-    chk = verify(ps, G, F, ref, gamma, delta, dense)
+    chk = verify(ps, G, F, ref, gamma, delta, dense, dist)
     return QFTResult(G, Ffin, chk.ok, chk.margins, chk.violated, st.high_frequency_gain(x_best),
-                     st.parameters(x_best), chk, ps, ref, (gamma, delta), freqs)
+                     st.parameters(x_best), chk, ps, ref, (gamma, delta), freqs, dist)

@@ -4,6 +4,7 @@ For a plant ``P_k``, controller ``G`` and prefilter ``F`` with ``L_k = P_k G``:
 
 * robust stability (seed 003 eq. 2): ``|L_k / (1 + L_k)| <= gamma`` (3 dB = 1.413 in the paper);
 * model matching (eq. 3): ``|L_k F / (1 + L_k) - F_m| <= delta`` (-20 dB = 0.1);
+* optionally, output-disturbance rejection ``|1 / (1 + L_k)| <= sigma`` (up to ``omega_max``);
 * every inner closed loop stable: the roots of ``D_P D_G + N_P N_G``, certified by
   :func:`posicast.spectra.stability` in :func:`verify`.
 
@@ -30,7 +31,7 @@ from ..spectra.rootfinder import RootFindingError
 from ..spectra.systems import stability
 from .plantset import PlantSet
 
-__all__ = ["SpecData", "Verification", "verify", "nichols_bounds", "dense_grid"]
+__all__ = ["SpecData", "Verification", "verify", "nichols_bounds", "dense_grid", "disturbance_spec"]
 
 
 @dataclass(frozen=True)
@@ -49,13 +50,16 @@ class SpecData:
         P = np.array([np.polyval(n, s) / np.polyval(d, s) for n, d in plants.polynomials()])
         return cls(w, P, reference.freqresp(w), None if prefilter is None else prefilter.freqresp(w))
 
-    def values(self, Gw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``|T_k|`` and ``|T_k F - F_m|`` for the controller's response ``Gw``: two ``(plants, w)`` arrays."""
+    def values(self, Gw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``|T_k|``, ``|T_k F - F_m|`` and ``|S_k| = |1 / (1 + L_k)|`` for the controller's response ``Gw``.
+
+        Three ``(plants, w)`` arrays.
+        """
         L = self.P * Gw
         S = 1.0 / (1.0 + L)
         T = L * S
         F = self.Fm if self.F is None else self.F
-        return np.abs(T), np.abs(T * F - self.Fm)
+        return np.abs(T), np.abs(T * F - self.Fm), np.abs(S)
 
 
 _NO_CONTROLLER = object()  # nichols_bounds has no controller to check
@@ -110,15 +114,23 @@ class Verification:
 
 
 def verify(plants: PlantSet, G: TransferFunction, F: TransferFunction | None, reference: TransferFunction,
-           gamma: float, delta: float, w: np.ndarray | None = None) -> Verification:
-    """Check ``G`` and ``F`` over every plant on a dense grid, with certified inner-loop stability."""
+           gamma: float, delta: float, w: np.ndarray | None = None, disturbance: Any = None) -> Verification:
+    """Check ``G`` and ``F`` over every plant on a dense grid, with certified inner-loop stability.
+
+    ``disturbance`` (optional): the output-disturbance bound ``|1 / (1 + P G)| <= sigma``, given as
+    ``sigma`` (every frequency) or ``(sigma, omega_max)`` (up to ``omega_max`` rad/s).
+    """
     plants, G, F, reference, gamma, delta = _checked(plants, G, F, reference, gamma, delta, "gamma", "delta")
+    dist = disturbance_spec(disturbance)
     if w is None:
         w = dense_grid(1e-3, 1e4, 1000)
     data = SpecData.at(plants, reference, F, w)
-    T, E = data.values(G.freqresp(w))
+    T, E, S = data.values(G.freqresp(w))
     worst: dict[str, float] = {}
-    for name, arr in (("stability", T), ("matching", E)):
+    checks = [("stability", T), ("matching", E)]
+    if dist is not None:
+        checks.append(("disturbance", np.where(w <= dist[1], S, 0.0)))
+    for name, arr in checks:
         k, i = np.unravel_index(int(np.argmax(arr)), arr.shape)
         worst[name], worst[f"{name}_omega"], worst[f"{name}_plant"] = float(arr[k, i]), float(w[i]), int(k)
     stable, abscissa = [], []
@@ -132,7 +144,9 @@ def verify(plants: PlantSet, G: TransferFunction, F: TransferFunction | None, re
         margins = {"stability": float(20 * (np.log10(gamma) - np.log10(worst["stability"]))),
                    "matching": float(20 * (np.log10(delta) - np.log10(worst["matching"]))),
                    "inner_loops": float(max(abscissa))}
-    violated = tuple(n for n in ("stability", "matching") if margins[n] < 0)
+        if dist is not None:
+            margins["disturbance"] = float(20 * (np.log10(dist[0]) - np.log10(worst["disturbance"])))
+    violated = tuple(n for n in ("stability", "matching", "disturbance") if n in margins and margins[n] < 0)
     if not all(stable):
         violated += ("inner_loops",)
     return Verification(margins, worst, tuple(stable), violated)
@@ -156,7 +170,8 @@ def _certified_stable(loop: TransferFunction) -> bool:
 
 def nichols_bounds(plants: PlantSet, frequencies: np.ndarray, reference: TransferFunction,
                    prefilter: TransferFunction | None, gamma: float, delta: float,
-                   phases: np.ndarray | None = None, gains_db: np.ndarray | None = None) -> np.ndarray:
+                   phases: np.ndarray | None = None, gains_db: np.ndarray | None = None,
+                   disturbance: Any = None) -> np.ndarray:
     """QFT bounds on the nominal loop ``L_0 = P_0 G``: admissible ``(frequency, gain, phase)`` cells.
 
     Every cell of the Nichols grid (``phases`` in degrees, ``gains_db``) is checked exactly
@@ -168,6 +183,7 @@ def nichols_bounds(plants: PlantSet, frequencies: np.ndarray, reference: Transfe
     """
     plants, _, prefilter, reference, gamma, delta = _checked(plants, _NO_CONTROLLER, prefilter, reference, gamma, delta,
                                                              "gamma", "delta")
+    dist = disturbance_spec(disturbance)
     frequencies = np.atleast_1d(v.strict_real_array(frequencies, "frequencies")).reshape(-1)
     if frequencies.size == 0 or frequencies.size > 1000:
         raise ValueError(f"frequencies must hold 1 to 1000 values, got {frequencies.size}")
@@ -184,4 +200,18 @@ def nichols_bounds(plants: PlantSet, frequencies: np.ndarray, reference: Transfe
             L = L0 * ratio[i, k]
             T = L / (1 + L)
             out[i] &= (np.abs(T) <= gamma) & (np.abs(T * F[i] - Fm[i]) <= delta)
+            if dist is not None and frequencies[i] <= dist[1]:
+                out[i] &= np.abs(1.0 / (1 + L)) <= dist[0]
     return out
+
+
+def disturbance_spec(value: Any) -> tuple[float, float] | None:
+    """``sigma`` or ``(sigma, omega_max)`` as ``(sigma, omega_max)`` (``omega_max = inf`` by default), or None."""
+    if value is None:
+        return None
+    if isinstance(value, (tuple, list)):
+        sigma, wmax = v.pair(value, "disturbance", "sigma or a (sigma, omega_max) pair")
+        if isinstance(wmax, (float, np.floating)) and wmax == np.inf:  # "every frequency"
+            return v.positive(sigma, "disturbance sigma"), float("inf")
+        return v.positive(sigma, "disturbance sigma"), v.positive(wmax, "disturbance omega_max")
+    return v.positive(value, "disturbance"), float("inf")
