@@ -43,6 +43,7 @@ def _plant_list(plants: Any, name: str = "plants") -> tuple[TransferFunction, ..
     return tuple(as_transfer(P, f"{name}[{i}]") for i, P in enumerate(items))
 
 
+@v.renamed_keywords(shaper="S")
 def percent_vibration(S: Shaper, plants: Any, *, per_plant: bool = False, damping: str = "model") -> Any:
     """Seed 003's percentage vibration of shaper ``S`` over a plant set: the worst case, or per plant.
 
