@@ -249,3 +249,20 @@ def test_disturbance_bound(plants, design):
         qft_design(plants, FM, stability=1.413, matching=0.1, disturbance=-1.0)
     with pytest.raises(TypeError, match="disturbance sigma must be a real number"):
         qft_design(plants, FM, stability=1.413, matching=0.1, disturbance=("a", 1.0))
+
+
+def test_prefilter_synthesis_on_the_robot_motor():
+    """G and F = F_m F_c designed together (F_c at unit DC gain), checked independently."""
+    rb = cases.ALL["flexible_joint_robot"]
+    P1, Fm = rb.G, rb.extras["F_m"]
+    r = qft_design([P1], Fm, stability=1.413, matching=0.05, structure=("lead",), prefilter_structure=("lead",))
+    assert r.feasible
+    assert abs(r.prefilter(1e-9) - 1.0) < 1e-6  # unit DC gain
+    Fc = r.prefilter / Fm
+    assert Fc.freqresp(np.array([1.0]))[0] == pytest.approx(
+        complex((1j / r.parameters["F.lead.z"] + 1) / (1j / r.parameters["F.lead.p"] + 1)), rel=1e-9)
+    w = dense_grid(1e-3, 1e4, 2000)
+    T = (P1 * r.controller).feedback()
+    assert np.max(np.abs(T.freqresp(w) * r.prefilter.freqresp(w) - Fm.freqresp(w))) <= 0.05
+    with pytest.raises(ValueError, match="prefilter_structure must not be given with a fixed prefilter"):
+        qft_design([P1], Fm, stability=1.4, matching=0.1, prefilter=Fm, prefilter_structure=("lead",))

@@ -213,8 +213,12 @@ def _feature_range(plants: PlantSet, reference: TransferFunction) -> tuple[float
     return float(min(mags)), float(max(mags))
 
 
-def _starts(structure: Structure, lo: float, hi: float, center: float) -> list[np.ndarray]:
-    """Deterministic starting points: zeros spread about the reference's mode, poles far above."""
+def _starts(structure: Structure, lo: float, hi: float, center: float,
+            prefilter: Structure | None = None) -> list[np.ndarray]:
+    """Deterministic starting points: zeros spread about the reference's mode, poles far above.
+
+    A prefilter correction starts as the identity (its zeros and poles at the same frequencies).
+    """
     kinds = [n.split(".")[-1] for n in structure.names[1:]]
     zeros = [i for i, k in enumerate(kinds) if k in ("z", "w", "wz")]
     out = []
@@ -230,6 +234,10 @@ def _starts(structure: Structure, lo: float, hi: float, center: float) -> list[n
                 x.append(np.log(np.clip(zs[zeros.index(i)], lo, hi)))
             else:
                 x.append(np.log(min(hi, center * pole_factor)))
+        if prefilter is not None:
+            x += [np.log(0.7) if n.split(".")[-1] in ("zeta", "zz", "zp") else np.log(center)
+                  for n in prefilter.names]
+            x[len(structure.names)] = 0.0  # F_c's gain: 1
         out.append(np.array(x))
     return out
 
@@ -243,6 +251,7 @@ def qft_design(
     frequencies: Any = None,
     structure: Sequence[str] = DEFAULT_STRUCTURE,
     prefilter: Any = None,
+    prefilter_structure: Sequence[str] | None = None,
     disturbance: Any = None,
     stability_margin: float = 0.05,
     refinements: int = 3,
@@ -267,6 +276,9 @@ def qft_design(
         The controller's sections (:class:`~posicast.qft.structure.Structure`).
     prefilter : plant-like, optional
         A fixed prefilter ``F``; default ``F = F_m`` (the paper's choice).
+    prefilter_structure : sequence of str, optional
+        Synthesise the prefilter too: ``F = F_m F_c`` with ``F_c`` of these sections at unit DC
+        gain, designed jointly with ``G`` (excludes ``prefilter``).
     disturbance : float or (float, float), optional
         Output-disturbance rejection ``|1 / (1 + P G)| <= sigma``: ``sigma``, or ``(sigma, omega_max)``
         for frequencies up to ``omega_max`` rad/s.
@@ -302,6 +314,16 @@ def qft_design(
         raise ValueError(f"structure must give a proper controller (relative degree >= 0), got "
                          f"{st.relative_degree} for {st.sections}: add poles")
     F = None if prefilter is None else as_transfer(prefilter, "prefilter")
+    stF = None
+    if prefilter_structure is not None:
+        if prefilter is not None:
+            raise ValueError("prefilter_structure must not be given with a fixed prefilter")
+        fsecs = tuple(v.sequence(prefilter_structure, "prefilter_structure"))
+        for sec in fsecs:
+            v.choice(sec, "prefilter_structure section", tuple(SECTIONS))
+        stF = Structure(fsecs)
+        if stF.relative_degree < 0:
+            raise ValueError(f"prefilter_structure must be proper (relative degree >= 0), got {stF.relative_degree}")
     if F is not None:
         num, den = F.to_scipy().num, F.to_scipy().den
         if F.has_delays or len(np.trim_zeros(num, "f")) > len(np.trim_zeros(den, "f")):
@@ -318,15 +340,24 @@ def qft_design(
     polys = ps.polynomials()
     center = float(np.sqrt(lo * hi)) if ref is None else float(np.sqrt(abs(ref.to_scipy().den[-1])))
     bounds = st.bounds(w_lo / 10, w_hi * 10)
+    nG = st.n_params
+    if stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
+        bounds = bounds + [(0.0, 0.0)] + stF.bounds(w_lo / 10, w_hi * 10)[1:]
     dense = dense_grid(w_lo, w_hi, 1000)
+
+    def prefilter_at(x: np.ndarray, s_: np.ndarray) -> np.ndarray | None:
+        if stF is None:
+            return None
+        fn, fd = stF.polynomials(x[nG:])
+        return ref.freqresp(s_.imag) * np.polyval(fn, s_) / np.polyval(fd, s_)
 
     def solve(grid_: np.ndarray, starts: list[np.ndarray]) -> tuple[np.ndarray | None, float]:
         data = SpecData.at(ps, ref, F, grid_)
         s = 1j * grid_
 
         def cons(x: np.ndarray) -> np.ndarray:
-            num, den = st.polynomials(x)
-            T, E, S = data.values(np.polyval(num, s) / np.polyval(den, s))
+            num, den = st.polynomials(x[:nG])
+            T, E, S = data.values(np.polyval(num, s) / np.polyval(den, s), prefilter_at(x, s) if stF else None)
             ab = -margin - _abscissae(polys, num, den)
             # the worst plant at each frequency, with a back-off so that the dense check passes between points
             with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
@@ -337,7 +368,7 @@ def qft_design(
             return np.nan_to_num(out, nan=-1e6, posinf=1e6, neginf=-1e6)
 
         def cost(x: np.ndarray) -> float:
-            return float(np.log(st.high_frequency_gain(x)))
+            return float(np.log(st.high_frequency_gain(x[:nG])))
 
         best, best_cost = None, np.inf
         for x0 in starts:
@@ -360,13 +391,13 @@ def qft_design(
 
     x_best = None
     for _ in range(refinements + 1):  # a refinement starts from the previous design
-        x_new, _c = solve(grid, _starts(st, w_lo, w_hi, center) if x_best is None else [x_best])
+        x_new, _c = solve(grid, _starts(st, w_lo, w_hi, center, stF) if x_best is None else [x_best])
         if x_new is None:
             break
         x_best = x_new
-        G = st.transfer(x_best)
+        G = st.transfer(x_best[:nG])
         data = SpecData.at(ps, ref, F, dense)
-        T, E, S = data.values(G.freqresp(dense))
+        T, E, S = data.values(G.freqresp(dense), prefilter_at(x_best, 1j * dense) if stF else None)
         bad = (T.max(0) > gamma) | (E.max(0) > delta)
         if dist is not None:
             bad |= (S.max(0) > dist[0]) & (dense <= dist[1])
@@ -374,9 +405,14 @@ def qft_design(
             break
         grid = np.union1d(grid, dense[bad][:: max(1, int(bad.sum()) // 40)])
     if x_best is None:  # no start converged to a feasible point: report the closest attempt
-        x_best = _starts(st, w_lo, w_hi, center)[0]
-    G = st.transfer(x_best)
+        x_best = _starts(st, w_lo, w_hi, center, stF)[0]
+    G = st.transfer(x_best[:nG])
+    if stF is not None:
+        F = ref * stF.transfer(x_best[nG:])
     Ffin = ref if F is None else F
     chk = verify(ps, G, F, ref, gamma, delta, dense, dist)
-    return QFTResult(G, Ffin, chk.ok, chk.margins, chk.violated, st.high_frequency_gain(x_best),
-                     st.parameters(x_best), chk, ps, ref, (gamma, delta), freqs, dist)
+    params = st.parameters(x_best[:nG])
+    if stF is not None:
+        params.update({f"F.{k}": val for k, val in stF.parameters(x_best[nG:]).items() if k != "K"})
+    return QFTResult(G, Ffin, chk.ok, chk.margins, chk.violated, st.high_frequency_gain(x_best[:nG]),
+                     params, chk, ps, ref, (gamma, delta), freqs, dist)

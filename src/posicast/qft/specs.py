@@ -50,15 +50,15 @@ class SpecData:
         P = np.array([np.polyval(n, s) / np.polyval(d, s) for n, d in plants.polynomials()])
         return cls(w, P, reference.freqresp(w), None if prefilter is None else prefilter.freqresp(w))
 
-    def values(self, Gw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def values(self, Gw: np.ndarray, Fw: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``|T_k|``, ``|T_k F - F_m|`` and ``|S_k| = |1 / (1 + L_k)|`` for the controller's response ``Gw``.
 
-        Three ``(plants, w)`` arrays.
+        Three ``(plants, w)`` arrays; ``Fw`` overrides the prefilter's response.
         """
         L = self.P * Gw
         S = 1.0 / (1.0 + L)
         T = L * S
-        F = self.Fm if self.F is None else self.F
+        F = Fw if Fw is not None else (self.Fm if self.F is None else self.F)
         return np.abs(T), np.abs(T * F - self.Fm), np.abs(S)
 
 
