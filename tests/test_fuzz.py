@@ -825,6 +825,7 @@ def entry_table() -> list[Entry]:
                    "structure": ("lead",)},
           {"plants": "object", "reference": "system", "stability": "real", "matching": "real",
            "frequencies": "array", "structure": "object", "prefilter": "system", "stability_margin": "real",
+           "prefilter_structure": "object", "disturbance": "object",
            "refinements": "int", "maxiter": "int"}, timeout=10.0, pool_limit=8, examples=1),
         E("verify", lambda **k: qft.verify(**k),
           lambda: {"plants": qft.PlantSet.from_list(qplants()), "G": posicast.as_transfer(3.0), "F": None,
