@@ -15,8 +15,12 @@ on a dense grid (:func:`~posicast.qft.specs.verify`, certified stability by
 grid and the design repeated (at most ``refinements`` times).  An infeasible specification is a
 result with ``feasible = False`` and the violated bounds named, never an exception.
 
+An optional output-disturbance bound ``|1 / (1 + P_k G)| <= sigma`` (up to ``omega_max``) joins them.
+
 The prefilter is the reference model (``F = F_m``, the paper's choice: eq. 3 becomes the
-output-disturbance bound ``|F_m / (1 + L_k)| <= delta``) unless a fixed one is given.
+output-disturbance bound ``|F_m / (1 + L_k)| <= delta``) unless a fixed one is given or its
+correction ``F_c`` (``F = F_m F_c``, unit DC gain) is synthesised with ``G`` (``prefilter_structure``).
+SLSQP finds a local optimum: the cost is the best of the starts, not a certified global minimum.
 """
 
 from __future__ import annotations
@@ -338,7 +342,10 @@ def qft_design(
     w_lo, w_hi = min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30
     grid = np.union1d(dense_grid(w_lo, w_hi, 60), freqs)
     polys = ps.polynomials()
-    center = float(np.sqrt(lo * hi)) if ref is None else float(np.sqrt(abs(ref.to_scipy().den[-1])))
+    rden = np.trim_zeros(np.asarray(ref.to_scipy().den, float), "f")
+    center = float(abs(rden[-1] / rden[0]) ** (1.0 / max(1, rden.size - 1)))  # the reference's pole scale
+    if not (np.isfinite(center) and center > 0):
+        center = float(np.sqrt(lo * hi))
     bounds = st.bounds(w_lo / 10, w_hi * 10)
     nG = st.n_params
     if stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
