@@ -130,7 +130,10 @@ def control_effort(*, P: Any, G: Any, F: Any, C: Any, S: Any, t: Any, w: Any = N
         v.instance_of(S, Shaper, "S", "a posicast Shaper (from posicast.design) or None")
     tt = v.strict_real_array(t, "t")
     loop = model_matching(P=Pt, G=Gt, F=Ft, C=C, S=S)
-    resp = simulate(loop, tt, w=np.ones_like(tt) if w is None else w)
+    try:
+        resp = simulate(loop, tt, w=np.ones_like(tt) if w is None else w)
+    except ValueError as exc:  # the simulator's refusal, for the loop these arguments make
+        raise ValueError(f"the loop of P, G, F, C and S cannot be simulated: {exc}") from None
     rs = resp.u
     _, u, _ = signal.lsim((num, den), rs, tt[: rs.size])
     return ControlEffort(tt[: rs.size], resp.y, rs, np.asarray(u, float))
