@@ -266,3 +266,17 @@ def test_prefilter_synthesis_on_the_robot_motor():
     assert np.max(np.abs(T.freqresp(w) * r.prefilter.freqresp(w) - Fm.freqresp(w))) <= 0.05
     with pytest.raises(ValueError, match="prefilter_structure must not be given with a fixed prefilter"):
         qft_design([P1], Fm, stability=1.4, matching=0.1, prefilter=Fm, prefilter_structure=("lead",))
+
+
+def test_readme_example_runs():
+    """The README's QFT example, as written (its doctest block)."""
+    import doctest
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    start = text.index("### QFT inner-loop model matching")
+    block = text[text.index("```python", start) + len("```python"): text.index("```", text.index("```python", start) + 9)]
+    test = doctest.DocTestParser().get_doctest(block, {}, "README QFT", "README.md", 0)
+    runner = doctest.DocTestRunner()
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 5
