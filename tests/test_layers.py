@@ -14,7 +14,7 @@ Layers (low to high):
 3. ``loops`` and ``cases``: the seeds' plants are loop data (transfer functions and
    modes); they sit with the loops so that the layers above (tune, the CLI's
    ``--case``) may use them and nothing below needs them.
-4. ``analysis``, ``simulation``, ``tune``, ``identification`` and ``firmware``: the
+4. ``analysis``, ``simulation``, ``tune``, ``qft``, ``identification`` and ``firmware``: the
    applications.  ``firmware`` (what each printer firmware runs) is imported by
    ``identification`` (the calibration's recommendations) and imports only shapers;
    it shares the layer, and a sideways import within a layer is allowed.
@@ -45,7 +45,7 @@ LAYERS: dict[str, int] = {
     "core": 1, "modes": 1,
     "shapers": 2, "spectra": 2,
     "loops": 3, "cases": 3,
-    "analysis": 4, "simulation": 4, "tune": 4, "identification": 4, "firmware": 4,
+    "analysis": 4, "simulation": 4, "tune": 4, "identification": 4, "firmware": 4, "qft": 4,
     "io": 5, "testing": 5,
     "cli": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
 }

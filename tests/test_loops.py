@@ -675,4 +675,4 @@ def test_registry_refuses_bad_entries_and_keeps_the_seeds():
         register_architecture("x", 3)
     with pytest.raises(ValueError, match="name must be one of"):
         unregister_architecture("control_action")
-    assert tuple(posicast.loops.ARCHITECTURES) == ("feedforward", "control_action", "inverse_shaper")
+    assert tuple(posicast.loops.ARCHITECTURES) == ("feedforward", "control_action", "inverse_shaper", "model_matching")

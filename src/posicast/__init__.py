@@ -31,6 +31,8 @@ Simulation (:mod:`posicast.simulation`)
     ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``.
 Tuning (:mod:`posicast.tune`)
     ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
+QFT inner-loop model matching (:mod:`posicast.qft`, seed 003)
+    ``PlantSet``, ``qft_design``, ``QFTResult``, ``percent_vibration``, ``model_matching``.
 Identification and printer calibration (:mod:`posicast.identification`)
     ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
 Case studies
@@ -59,6 +61,7 @@ from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shape
 from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
+from .qft import PlantSet, QFTResult, model_matching, percent_vibration, qft_design
 
 __version__ = "0.1.0"
 
@@ -85,6 +88,8 @@ __all__ = [
     "simulate", "SimulationResponse", "ShaperFilter", "shape_signal",
     # tuning
     "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
+    # QFT inner-loop model matching
+    "PlantSet", "qft_design", "QFTResult", "percent_vibration", "model_matching",
     # identification and calibration
     "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
     # case studies

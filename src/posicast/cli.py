@@ -1,4 +1,4 @@
-"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``.
+"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``, ``qft``.
 
 ``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
 (one line on stderr, no configuration printed).  Every error (bad argument,
@@ -48,6 +48,7 @@ from .identification.plots import calibration_plot
 from .identification.resonance import resonance_data
 from .identification.significance import MAX_MODES
 from .modes import Mode
+from .qft import PlantSet, qft_design
 from .shapers.base import Shaper
 from .shapers import registry  # registry.design at call time: the suite patches it to test status 70
 from .spectra.rootfinder import RootFindingError
@@ -170,7 +171,37 @@ def _build_parser() -> _Parser:
     t.add_argument("--json", action="store_true", help="machine-readable output")
     t.add_argument("--plot", help="write the region in the gain plane (png, pdf, svg)")
     t.add_argument("--nyquist", help="write the Nyquist plot with the Ms circle")
+
+    q = sub.add_parser("qft", help="QFT inner-loop model matching over seed 003's uncertain two-mass plants")
+    q.add_argument("--uncertainty", type=float, default=50.0, help="c1, c2, k2 uncertainty [%%] (default 50)")
+    q.add_argument("--stability", type=float, default=1.413, help="bound on |PG/(1+PG)| (default 1.413, eq. 2)")
+    q.add_argument("--matching", type=float, default=0.1, help="bound on |PGF/(1+PG) - F_m| (default 0.1, eq. 3)")
+    q.add_argument("--structure", default="lead,lead,lead", help="controller sections, comma-separated")
+    q.add_argument("--json", action="store_true", help="machine-readable output")
+    q.add_argument("--plot", help="write the Nichols chart with the bounds (png, pdf, svg)")
     return parser
+
+
+def _qft_cmd(args: argparse.Namespace) -> int:
+    """``posicast qft``: design G for the two-mass plant set; exit 1 when the spec is infeasible."""
+    plants = PlantSet.two_mass(v.real_in_range(args.uncertainty, "--uncertainty", 0.0, 100.0, hi_open=True))
+    sections = tuple(x.strip() for x in args.structure.split(",") if x.strip())
+    r = qft_design(plants, CASES["two_mass"].extras["F_m"], stability=args.stability, matching=args.matching,
+                   structure=sections)
+    sc = r.controller.to_scipy()
+    if args.json:
+        print(json.dumps({"feasible": r.feasible, "violated": list(r.violated), "margins": dict(r.margins),
+                          "high_frequency_gain": r.high_frequency_gain, "parameters": dict(r.parameters),
+                          "num": [float(x) for x in sc.num], "den": [float(x) for x in sc.den]}, indent=2))
+    else:
+        print(r.summary())
+        print("G num: " + " ".join(f"{x:.10g}" for x in sc.num))
+        print("G den: " + " ".join(f"{x:.10g}" for x in sc.den))
+    if args.plot:
+        _pyplot()
+        fig, _ = r.plot()
+        _save_atomic(fig, args.plot, "--plot")
+    return 0 if r.feasible else 1
 
 
 def _coeffs(text: str, name: str) -> list[float]:
@@ -475,6 +506,8 @@ def _run(argv: Sequence[str] | None) -> int:
         return _identify_cmd(args)
     if args.command == "tune":
         return _tune_cmd(args)
+    if args.command == "qft":
+        return _qft_cmd(args)
     if args.command == "kinds":
         for name, spec in registry.KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())

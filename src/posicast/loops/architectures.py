@@ -17,6 +17,9 @@ control_action     ``e = w - (z + n)``; ``v = C e``; ``u = S v``;
 (Fig. 2, "CLSS")   ``z = G (u + di) + d``; ``y = F z``
 inverse_shaper     ``e = w - m``, ``m = (z + n) / S``; ``v = C e``; ``u = v``;
 (Fig. 3)           ``z = G (u + di) + d``; ``y = F z``
+model_matching     as control_action, with ``G`` the inner closed loop
+(seed 003 Fig. 1)  ``P G_i F_i / (1 + P G_i)`` (``u = r_s``, the shaped inner reference);
+                   built by :func:`posicast.qft.model_matching`
 =================  =================================================================
 
 Adding an architecture is one call of :func:`register_architecture`; the loop
@@ -69,10 +72,16 @@ def _inverse_shaper(blocks: LoopBlocks) -> Ring:
     return _standard_ring(blocks, reference=Tap(0), shaper_after_controller=False, inverse_feedback=True)
 
 
+def _model_matching(blocks: LoopBlocks) -> Ring:
+    """Seed 003 Fig. 1: the shaper before the inner model-matching loop, which is the block ``G``."""
+    return _control_action(blocks)
+
+
 _REGISTRY: dict[str, RingBuilder] = {
     "feedforward": _feedforward,
     "control_action": _control_action,
     "inverse_shaper": _inverse_shaper,
+    "model_matching": _model_matching,
 }
 _BUILTIN = tuple(_REGISTRY)
 
@@ -116,7 +125,7 @@ def register_architecture(name: str, build: RingBuilder, *, replace: bool = Fals
         ``build(LoopBlocks(G, C, F, S, S_inverse)) -> Ring``; the ring must take the
         inputs ``w, d, di, n``.
     replace : bool
-        Allow replacing a registered architecture other than the three of the seeds.
+        Allow replacing a registered architecture other than the seeds' own.
 
     Examples
     --------
@@ -146,7 +155,7 @@ def register_architecture(name: str, build: RingBuilder, *, replace: bool = Fals
 
 
 def unregister_architecture(name: str) -> None:
-    """Remove an architecture added by :func:`register_architecture` (the seeds' three stay)."""
+    """Remove an architecture added by :func:`register_architecture` (the seeds' own stay)."""
     v.choice(name, "name", tuple(n for n in _REGISTRY if n not in _BUILTIN))
     del _REGISTRY[name]
 
