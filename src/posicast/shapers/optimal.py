@@ -1,0 +1,684 @@
+"""Optimal lumped shapers: specified insensitivity (SI) and the shortest shaper under a firmware's limits.
+
+The problem (Singhose, Seering and Singer's specified-insensitivity shapers, 1996/1997, for
+several modes at once): for modes ``m`` with bands of frequency ratios ``[lo_m, hi_m]`` and
+damping ranges ``[z_lo, z_hi]``,
+
+    minimise ``t_n``  subject to  ``V(omega, zeta) <= vtol`` on every band,
+    ``sum A_i = 1``, ``A_i >= 0``, ``0 = t_1 <= ... <= t_n``,
+    and optionally ``n <= max_impulses`` and every ``t_i`` a multiple of ``sample_period``.
+
+``V`` is the residual vibration of :mod:`posicast.analysis.vibration` with its default
+``reference="end"`` (seed 004 eq. 1-3): ``V = e^{-zeta omega t_n} |sum A_i e^{zeta omega t_i}
+e^{-j omega_d t_i}|``.
+
+Method
+------
+1. **LP at a fixed duration** ``D``: amplitudes on a time grid (48 points per period of the
+   highest frequency), ``|z| <= vtol`` as an inscribed 12-gon at sampled frequencies; the
+   least polygon vibration ``s*(D)`` is a linear program (HiGHS).  Bisection on ``D`` gives the
+   shortest grid shaper.
+2. **Polish**: its impulse clusters start an SLSQP in continuous times and amplitudes with the
+   exact constraints ``V^2 <= vtol^2`` and analytic gradients; frequencies where ``V`` peaks
+   above ``vtol`` on a dense grid are added and the problem re-solved (an exchange method).
+3. **Certificate** (a duration lower bound valid for *any* number of impulses at any times):
+   any positive shaper of duration ``<= D``, its times rounded to a grid of step ``h``, is
+   ``sum_k A_k w_k + B_k w'_k`` up to ``omega^2 h^2 / 8`` with ``|B_k| <= A_k h / 2``
+   (``w_k = e^{(zeta omega - j omega_d) t_k - zeta omega D}``, ``|w''| <= omega^2``).  If that LP
+   relaxation (circumscribed polygon) cannot bring ``V`` below ``vtol + omega^2 h^2 / 8`` at the
+   sampled frequencies, no shaper of duration ``<= D`` meets the band: ``D`` is a lower bound.
+4. **KKT residual** of the polished solution: the least-squares multipliers (``>= 0`` for the
+   inequalities) of the active constraints and how far they leave the gradient of ``t_n``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import product
+from typing import Any, Sequence
+
+import numpy as np
+from scipy.optimize import linprog, lsq_linear, minimize, minimize_scalar
+
+from .. import _validate as v
+from ..modes import Mode
+from .base import Shaper
+from .ei import ei_exact, ei_multi_hump
+from .lumped import zvdk_impulses, mzv_impulses
+
+__all__ = ["ActiveConstraint", "Optimality", "OptimalShaper", "shortest_shaper", "si_shaper"]
+
+_N_DIR = 12                  # polygon directions of the LP
+_COS = math.cos(math.pi / _N_DIR)
+_GRID_PER_PERIOD = 48        # LP time grid: points per period of the highest frequency
+_MAX_GRID = 2500             # most LP time-grid points (a duration cap: ~50 periods of the highest frequency)
+_REL = 1e-7                  # relative slack: the NLP aims at vtol (1 - _REL); "active" within 1e-5
+
+
+@dataclass(frozen=True)
+class ActiveConstraint:
+    """A frequency (and damping) where the residual vibration reaches the tolerance."""
+
+    mode: int          #: index of the mode (in the order given)
+    ratio: float       #: omega / omega_mode
+    zeta: float        #: damping ratio
+    vibration: float   #: V there
+
+
+@dataclass(frozen=True)
+class Optimality:
+    """How good an optimal shaper is, and why.
+
+    Attributes
+    ----------
+    feasible : bool
+        True if ``V <= vtol`` on the dense verification grid of every band (1e-6 relative slack).
+    status : str
+        ``"optimal"`` (a KKT point of the continuous problem), ``"feasible"`` (meets the bands but is
+        not a verified KKT point, e.g. rounded to a sample grid), ``"infeasible"`` (the limits do not
+        allow the bands: the shaper returned is the least-vibration one found) or ``"exact"`` (a closed
+        form's defining equations solved to rounding).
+    vtol : float
+    max_vibration : float
+        Largest ``V`` over the bands (dense grid, peaks refined).
+    duration : float
+        ``t_n`` [s].
+    lower_bound : float
+        Certified lower bound on the duration of *any* positive shaper meeting the bands at the
+        sampled frequencies (LP relaxation, see the module docstring); 0 when not computed.
+    n_impulses : int
+    active : tuple of ActiveConstraint
+        The frequencies where ``V`` touches ``vtol`` (within 1e-5 relative).
+    kkt_residual : float
+        ``|grad t_n - J^T lambda| / |grad t_n|`` over the active constraints (nan if not computed).
+    message : str
+    """
+
+    feasible: bool
+    status: str
+    vtol: float
+    max_vibration: float
+    duration: float
+    lower_bound: float
+    n_impulses: int
+    active: tuple[ActiveConstraint, ...]
+    kkt_residual: float
+    message: str
+
+    @property
+    def gap(self) -> float:
+        """``(duration - lower_bound) / duration``: how far from the certified bound (1 without a bound)."""
+        return (self.duration - self.lower_bound) / self.duration if self.duration > 0 else 0.0
+
+    def summary(self) -> str:
+        """One paragraph for a report or a terminal."""
+        lb = f", certified lower bound {self.lower_bound:.6g} s (gap {100 * self.gap:.2f} %)" \
+            if self.lower_bound > 0 else ""
+        return (f"{self.status}: {self.n_impulses} impulses, duration {self.duration:.6g} s{lb}; "
+                f"max V {self.max_vibration:.4g} (vtol {self.vtol:g}), {len(self.active)} active constraints, "
+                f"KKT residual {self.kkt_residual:.2g}. {self.message}")
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class OptimalShaper(Shaper):
+    """A :class:`~posicast.shapers.base.Shaper` with its :class:`Optimality` (``.optimality``)."""
+
+    optimality: Optimality | None = None
+
+
+# ----------------------------------------------------------------------------- the problem
+
+
+@dataclass(frozen=True)
+class _Problem:
+    modes: tuple[Mode, ...]
+    bands: tuple[tuple[float, float], ...]
+    dampings: tuple[tuple[float, float], ...]
+    vtol: float
+    scale: float  # times are handled in units of 1 / scale (scale = highest band frequency)
+
+    def points(self, per_cycle: float, duration: float, n_min: int, n_zeta: int) -> tuple[np.ndarray, ...]:
+        """Sample frequencies ``(nu, zeta, mode index, ratio)``: ``per_cycle`` points per oscillation of V."""
+        nu, ze, idx, rat = [], [], [], []
+        for i, (m, (lo, hi), (z0, z1)) in enumerate(zip(self.modes, self.bands, self.dampings)):
+            width = (hi - lo) * m.omega / self.scale
+            n = 1 if hi == lo else int(min(4000, max(n_min, math.ceil(per_cycle * width * duration / (2 * math.pi)) + 1)))
+            r = np.linspace(lo, hi, n)
+            zs = np.array([z0]) if z1 == z0 else np.linspace(z0, z1, n_zeta)
+            for z in zs:
+                nu.append(r * m.omega / self.scale)
+                ze.append(np.full(n, z))
+                idx.append(np.full(n, i))
+                rat.append(r)
+        return tuple(np.concatenate(x) for x in (nu, ze, idx, rat))
+
+
+def _qs(nu: np.ndarray, zeta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``q = nu (zeta - j sqrt(1 - zeta^2))`` (so ``e^{q t}`` is a term of S(p) e^{...}) and the decay ``nu zeta``."""
+    return nu * (zeta - 1j * np.sqrt((1.0 - zeta) * (1.0 + zeta))), nu * zeta
+
+
+def _z(u: np.ndarray, A: np.ndarray, q: np.ndarray, sig: np.ndarray, u_end: float) -> np.ndarray:
+    """``e^{-sigma u_end} sum_i A_i e^{q u_i}``: the residual phasor at each sample (|z| = V)."""
+    return np.exp(np.multiply.outer(q, u) - sig[:, None] * u_end) @ A
+
+
+# ----------------------------------------------------------------------------- step 1: LP
+
+
+def _lp(q: np.ndarray, sig: np.ndarray, u: np.ndarray, u_end: float, first_order_h: float = 0.0,
+        inner: bool = True) -> tuple[float, np.ndarray]:
+    """Least polygon vibration ``s*`` over amplitudes on the grid ``u`` (and ``B`` if ``first_order_h``)."""
+    W = np.exp(np.multiply.outer(q, u) - sig[:, None] * u_end)
+    rot = np.exp(-1j * 2 * math.pi * np.arange(_N_DIR) / _N_DIR)
+    K = u.size
+    blocks = [(rot[:, None, None] * W[None]).real.reshape(-1, K)]
+    if first_order_h:
+        blocks.append((rot[:, None, None] * (q[:, None] * W)[None]).real.reshape(-1, K))
+    nv = K * len(blocks)
+    A_ub = np.hstack(blocks + [-np.ones((blocks[0].shape[0], 1))])
+    b_ub = np.zeros(A_ub.shape[0])
+    if first_order_h:  # |B_k| <= h/2 A_k
+        eye = np.eye(K)
+        lim = np.hstack([np.vstack([-0.5 * first_order_h * eye, -0.5 * first_order_h * eye]),
+                         np.vstack([eye, -eye]), np.zeros((2 * K, 1))])
+        A_ub = np.vstack([A_ub, lim])
+        b_ub = np.concatenate([b_ub, np.zeros(2 * K)])
+    A_eq = np.zeros((1, nv + 1))
+    A_eq[0, :K] = 1.0
+    c = np.zeros(nv + 1)
+    c[-1] = 1.0
+    bounds = [(0, None)] * K + [(None, None)] * (nv - K) + [(None, None)]
+    res = linprog(c, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=[1.0], bounds=bounds, method="highs")
+    if res.status != 0:  # pragma: no cover - the LP is always feasible and bounded
+        raise RuntimeError(f"the shaper LP failed: {res.message}")
+    s = float(res.x[-1])
+    return (s / _COS if inner else s), res.x[:K]
+
+
+def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, float, float]:
+    """Bisection on the grid length: (shortest K or None, its amplitudes, grid step h, s* at the cap)."""
+    h = 2 * math.pi / _GRID_PER_PERIOD  # scale = the highest frequency: its period is 2 pi
+
+    def solve(K: int) -> tuple[float, np.ndarray]:
+        u = np.arange(K + 1) * h
+        nu, ze, _, _ = prob.points(8, u[-1], 11, 3)
+        q, sig = _qs(nu, ze)
+        return _lp(q, sig, u, u[-1])
+
+    nu_min = min(m.omega * b[0] for m, b in zip(prob.modes, prob.bands)) / prob.scale
+    k = max(2, min(k_cap, int(math.ceil(0.5 * math.pi / nu_min / h))))
+    lo = 0
+    while True:
+        s, A = solve(k)
+        if s <= prob.vtol:
+            break
+        if k >= k_cap:
+            return None, A, h, s
+        lo, k = k, min(k_cap, 2 * k)
+    best = (k, A)
+    hi = k
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        s, A = solve(mid)
+        if s <= prob.vtol:
+            hi, best = mid, (mid, A)
+        else:
+            lo = mid
+    return best[0], best[1], h, 0.0
+
+
+def _lower_bound(prob: _Problem, k_hi: int) -> float:
+    """Largest duration (scaled units) proven infeasible by the first-order LP relaxation (module docstring)."""
+    h = 2 * math.pi / _GRID_PER_PERIOD
+    slack = h * h / 8.0  # nu <= 1: omega^2 h^2 / 8 in scaled units
+
+    def infeasible(K: int) -> bool:
+        u = np.arange(K + 1) * h
+        nu, ze, _, _ = prob.points(8, u[-1], 11, 3)
+        q, sig = _qs(nu, ze)
+        s, _ = _lp(q, sig, u, u[-1], first_order_h=h, inner=False)
+        return s > prob.vtol + slack
+
+    lo, hi = 0, k_hi
+    if not infeasible(1):
+        return 0.0
+    lo = 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if infeasible(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo * h
+
+
+def _clusters(u: np.ndarray, A: np.ndarray, gap: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Impulse clusters of a grid solution: runs of nonzero amplitudes -> (weighted time, total amplitude)."""
+    nz = np.flatnonzero(A > 1e-9 * A.max())
+    groups: list[list[int]] = [[int(nz[0])]]
+    for i in nz[1:]:
+        if i - groups[-1][-1] <= gap:
+            groups[-1].append(int(i))
+        else:
+            groups.append([int(i)])
+    amps = np.array([A[g].sum() for g in groups])
+    times = np.array([np.dot(A[g], u[g]) / A[g].sum() for g in groups])
+    times -= times[0]
+    return times, amps / amps.sum()
+
+
+# ----------------------------------------------------------------------------- step 2: NLP polish
+
+
+def _unpack(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.concatenate([[0.0], x[: n - 1]]), x[n - 1: 2 * n - 1]
+
+
+def _v2_and_grad(x: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``|z_j|^2`` and its gradient in ``x = (u_2..u_n, A_1..A_n)``."""
+    u, A = _unpack(x, n)
+    W = np.exp(np.multiply.outer(q, u) - sig[:, None] * u[-1])
+    z = W @ A
+    dz_du = q[:, None] * W * A[None, :]
+    dz_du[:, -1] -= sig * z
+    dz = np.hstack([dz_du[:, 1:], W])
+    return np.abs(z) ** 2, 2.0 * (np.conj(z)[:, None] * dz).real
+
+
+def _linear_constraints(n: int, u_max: float | None) -> list[dict[str, Any]]:
+    D = np.zeros((n - 1, 2 * n - 1))  # u_{i+1} - u_i >= 0 (u_1 = 0)
+    for i in range(n - 1):
+        D[i, i] = 1.0
+        if i:
+            D[i, i - 1] = -1.0
+    cons = [{"type": "ineq", "fun": lambda x, D=D: D @ x, "jac": lambda x, D=D: D},
+            {"type": "eq", "fun": lambda x: np.array([x[n - 1:].sum() - 1.0]),
+             "jac": lambda x: np.concatenate([np.zeros(n - 1), np.ones(n)])[None, :]}]
+    if u_max is not None:
+        e = np.zeros(2 * n - 1)
+        e[n - 2] = -1.0
+        cons.append({"type": "ineq", "fun": lambda x: np.array([u_max - x[n - 2]]), "jac": lambda x: e[None, :]})
+    return cons
+
+
+def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol: float) -> np.ndarray:
+    target = (vtol * (1 - _REL)) ** 2
+    grad = np.zeros(2 * n - 1)
+    grad[n - 2] = 1.0
+    cons = _linear_constraints(n, None) + [{
+        "type": "ineq", "fun": lambda x: target - _v2_and_grad(x, n, q, sig)[0],
+        "jac": lambda x: -_v2_and_grad(x, n, q, sig)[1]}]
+    bounds = [(0, None)] * (n - 1) + [(0, 1)] * n
+    res = minimize(lambda x: x[n - 2], x0, jac=lambda x: grad, method="SLSQP", bounds=bounds, constraints=cons,
+                   options={"maxiter": 300, "ftol": 1e-13})
+    return res.x
+
+
+def _slsqp_minimax(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, u_max: float) -> np.ndarray:
+    """Least worst ``V^2`` with ``n`` impulses within ``[0, u_max]`` (variables x and the level s)."""
+    y0 = np.concatenate([x0, [float(np.max(_v2_and_grad(x0, n, q, sig)[0]))]])
+    cons = [{"type": c["type"], "fun": (lambda y, f=c["fun"]: f(y[:-1])),
+             "jac": (lambda y, j=c["jac"]: np.hstack([np.atleast_2d(j(y[:-1])), np.zeros((np.atleast_2d(j(y[:-1])).shape[0], 1))]))}
+            for c in _linear_constraints(n, u_max)]
+    cons.append({"type": "ineq", "fun": lambda y: y[-1] - _v2_and_grad(y[:-1], n, q, sig)[0],
+                 "jac": lambda y: np.hstack([-_v2_and_grad(y[:-1], n, q, sig)[1], np.ones((q.size, 1))])})
+    e = np.zeros(y0.size)
+    e[-1] = 1.0
+    bounds = [(0, u_max)] * (n - 1) + [(0, 1)] * n + [(0, None)]
+    res = minimize(lambda y: y[-1], y0, jac=lambda y: e, method="SLSQP", bounds=bounds, constraints=cons,
+                   options={"maxiter": 300, "ftol": 1e-14})
+    return res.x[:-1]
+
+
+def _peaks(prob: _Problem, u: np.ndarray, A: np.ndarray, refine_above: float) -> list[tuple[int, float, float, float]]:
+    """Local maxima of V on a dense grid of every band (refined when above ``refine_above``):
+    ``(mode index, ratio, zeta, V)``, band ends included."""
+    out = []
+    for i, (m, (lo, hi), (z0, z1)) in enumerate(zip(prob.modes, prob.bands, prob.dampings)):
+        nu_per = m.omega / prob.scale
+        n = 1 if hi == lo else int(min(20000, max(101, math.ceil(40 * (hi - lo) * nu_per * u[-1] / (2 * math.pi)) + 101)))
+        r = np.linspace(lo, hi, n)
+        for z in (np.array([z0]) if z1 == z0 else np.linspace(z0, z1, 5)):
+            q, sig = _qs(r * nu_per, np.full(n, z))
+            V = np.abs(_z(u, A, q, sig, u[-1]))
+            if n == 1:
+                out.append((i, float(r[0]), float(z), float(V[0])))
+                continue
+            loc = [0, n - 1] + [k for k in range(1, n - 1) if V[k] >= V[k - 1] and V[k] >= V[k + 1]]
+            for k in loc:
+                rk, vk = float(r[k]), float(V[k])
+                if 0 < k < n - 1 and vk > refine_above:
+                    def f(x: float, z: float = float(z)) -> float:
+                        qq, ss = _qs(np.array([x * nu_per]), np.array([z]))
+                        return -float(np.abs(_z(u, A, qq, ss, u[-1]))[0])
+                    res = minimize_scalar(f, bounds=(r[k - 1], r[k + 1]), method="bounded", options={"xatol": 1e-12})
+                    if -res.fun > vk:
+                        rk, vk = float(res.x), float(-res.fun)
+                out.append((i, rk, float(z), vk))
+    return out
+
+
+def _point_arrays(prob: _Problem, pk: list[tuple[int, float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    nu = np.array([p[1] * prob.modes[p[0]].omega / prob.scale for p in pk])
+    return _qs(nu, np.array([p[2] for p in pk]))
+
+
+def _exchange(prob: _Problem, u: np.ndarray, A: np.ndarray, max_n: int | None) -> tuple[np.ndarray, np.ndarray]:
+    """Step 2: SLSQP on an exchanged set of frequencies until the dense grid is within vtol."""
+    nu, ze, _, _ = prob.points(6, u[-1], 11, 3)
+    q, sig = _qs(nu, ze)
+    for _ in range(8):
+        n = u.size
+        x = _slsqp_shortest(np.concatenate([u[1:], A]), n, q, sig, prob.vtol)
+        u_new, A_new = _unpack(x, n)
+        keep = A_new > 1e-10  # drop vanished impulses, merge coincident ones
+        u_new, A_new = u_new[keep] - u_new[keep][0], A_new[keep] / A_new[keep].sum()
+        pk = _peaks(prob, u_new, A_new, prob.vtol * 0.9)
+        worst = max(p[3] for p in pk)
+        if np.all(np.diff(u_new) > 1e-9) and worst <= prob.vtol * (1 + 1e-6):
+            return u_new, A_new
+        if worst <= prob.vtol * (1 + 1e-6) or (max_n is not None and keep.sum() < n):
+            u, A = u_new, A_new
+        over = [p for p in pk if p[3] > prob.vtol * (1 - 1e-3)]
+        qa, sa = _point_arrays(prob, over)
+        q, sig = np.concatenate([q, qa]), np.concatenate([sig, sa])
+        if np.all(np.diff(u_new) > 1e-9):
+            u, A = u_new, A_new
+    return u, A
+
+
+def _closed_form_starts(prob: _Problem) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Single mode: the closed-form families (ZV ... ZVDDD, MZV, EI, 2- and 3-hump EI) that meet the bands,
+    in scaled time units; polishing them makes the result no longer than any of them."""
+    if len(prob.modes) != 1:
+        return []
+    m = prob.modes[0]
+    builders = [lambda k=k: zvdk_impulses(m, k) for k in range(4)] + [lambda: mzv_impulses(m)]
+    if prob.vtol >= 1e-6:
+        builders += [lambda: ei_exact(m, prob.vtol), lambda: ei_multi_hump(m, prob.vtol, 2),
+                     lambda: ei_multi_hump(m, prob.vtol, 3)]
+    out = []
+    for build in builders:
+        try:
+            t, a = build()
+        except (ValueError, RuntimeError):  # a family without a solution at this (zeta, vtol)
+            continue
+        u = np.asarray(t, dtype=float) * prob.scale
+        a = np.asarray(a, dtype=float)
+        if max(p[3] for p in _peaks(prob, u, a, prob.vtol * 0.9)) <= prob.vtol * (1 + 1e-9):
+            out.append((u, a))
+    return out
+
+
+# ----------------------------------------------------------------------------- step 4: KKT
+
+
+def _kkt(prob: _Problem, u: np.ndarray, A: np.ndarray, pk: list[tuple[int, float, float, float]]) -> float:
+    n = u.size
+    if n < 2:
+        return math.nan
+    act = [p for p in pk if p[3] >= prob.vtol * (1 - 1e-5)]
+    cols = []
+    if act:
+        q, sig = _point_arrays(prob, act)
+        cols.append(-_v2_and_grad(np.concatenate([u[1:], A]), n, q, sig)[1])  # grad of vtol^2 - V^2
+    m = 2 * n - 1
+    for i in range(n):  # A_i >= 0 active
+        if A[i] < 1e-9:
+            e = np.zeros((1, m))
+            e[0, n - 1 + i] = 1.0
+            cols.append(e)
+    for i in range(n - 1):  # u_{i+1} - u_i >= 0 active
+        if u[i + 1] - u[i] < 1e-9:
+            e = np.zeros((1, m))
+            e[0, i] = 1.0
+            if i:
+                e[0, i - 1] = -1.0
+            cols.append(e)
+    G = np.vstack(cols) if cols else np.zeros((0, m))
+    eq = np.concatenate([np.zeros(n - 1), np.ones(n)])[None, :]
+    M = np.vstack([G, eq]).T
+    g = np.zeros(m)
+    g[n - 2] = 1.0
+    lb = np.concatenate([np.zeros(G.shape[0]), [-np.inf]])
+    res = lsq_linear(M, g, bounds=(lb, np.full(M.shape[1], np.inf)))
+    return float(np.linalg.norm(M @ res.x - g) / np.linalg.norm(g))
+
+
+# ----------------------------------------------------------------------------- limits: N impulses, sample grid
+
+
+def _merge_to(u: np.ndarray, A: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    u, A = u.copy(), A.copy()
+    while u.size > n:
+        i = int(np.argmin(np.diff(u)))
+        w = A[i] + A[i + 1]
+        t = (A[i] * u[i] + A[i + 1] * u[i + 1]) / w
+        u = np.concatenate([u[:i], [t], u[i + 2:]])
+        A = np.concatenate([A[:i], [w], A[i + 2:]])
+    return u - u[0], A
+
+
+def _limited(prob: _Problem, u: np.ndarray, A: np.ndarray, n: int, u_lb: float,
+             u_cap: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """At most ``n`` impulses: minimax SLSQP at growing durations from two starts, then the shortest."""
+    nu, ze, _, _ = prob.points(6, max(u[-1], u_lb), 11, 3)
+    q, sig = _qs(nu, ze)
+    starts = [_merge_to(u, A, n)]
+    D0 = max(u_lb, 1e-3)
+    starts.append((np.linspace(0.0, D0, n), np.full(n, 1.0 / n)))
+    best: tuple[float, np.ndarray, np.ndarray] | None = None
+    fallback = None
+    for u0, A0 in starts:
+        x = np.concatenate([u0[1:] * D0 / max(u0[-1], 1e-12), A0])
+        D = D0
+        while D <= u_cap * (1 + 1e-12):
+            x = _slsqp_minimax(x, n, q, sig, D)
+            pk = _peaks(prob, *_unpack(x, n), prob.vtol * 0.5)
+            worst = max(p[3] for p in pk)
+            if fallback is None or worst < fallback[0]:
+                fallback = (worst, *_unpack(x, n))
+            if worst <= prob.vtol * (1 - 1e-4):
+                uu, AA = _exchange(prob, *_unpack(x, n), n)
+                if best is None or uu[-1] < best[0]:
+                    best = (uu[-1], uu, AA)
+                break
+            over = [p for p in pk if p[3] > 0.8 * max(prob.vtol, worst)]
+            qa, sa = _point_arrays(prob, over)
+            q, sig = np.concatenate([q, qa]), np.concatenate([sig, sa])
+            if D >= u_cap:
+                break
+            D = min(u_cap, D * 1.08)
+            x[: n - 1] *= 1.0  # warm start: keep the times, the bound has grown
+    if best is None:
+        assert fallback is not None
+        return fallback[1], fallback[2], False
+    return best[1], best[2], True
+
+
+def _amplitudes_at(prob: _Problem, u: np.ndarray) -> tuple[float, np.ndarray]:
+    """Least worst V over amplitudes at fixed times ``u`` (LP at dense frequencies, inscribed polygon)."""
+    nu, ze, _, _ = prob.points(24, u[-1], 41, 5)
+    q, sig = _qs(nu, ze)
+    return _lp(q, sig, u, u[-1])
+
+
+def _on_grid(prob: _Problem, u: np.ndarray, step: float, u_cap: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Times rounded to multiples of ``step`` (scaled units), amplitudes re-solved; stretched until feasible."""
+    best = None
+    for stretch in range(0, 200):
+        D = u[-1] + stretch * step
+        if D > u_cap + step:
+            break
+        k = u * (D / u[-1]) / step if u[-1] > 0 else u / step
+        inner = k[1:]
+        choices = [np.unique(np.array([np.floor(x), np.ceil(x)])) for x in inner]
+        combos = list(product(*choices)) if np.prod([c.size for c in choices]) <= 256 else [tuple(np.round(inner))]
+        found = None
+        for c in sorted(combos, key=lambda c: c[-1]):
+            kk = np.unique(np.concatenate([[0.0], np.array(c, dtype=float)]))
+            if found is not None and kk[-1] > found[0][-1]:
+                break
+            s, A = _amplitudes_at(prob, kk * step)
+            if best is None or s < best[0]:
+                best = (s, kk * step, A)
+            if s <= prob.vtol * (1 - 1e-6):
+                uu, AA = kk * step, A
+                pk = _peaks(prob, uu, AA, prob.vtol * 0.9)
+                if max(p[3] for p in pk) <= prob.vtol * (1 + 1e-6):
+                    found = (uu, AA)
+        if found is not None:
+            keep = found[1] > 1e-12
+            return found[0][keep], found[1][keep] / found[1][keep].sum(), True
+    assert best is not None
+    return best[1], best[2], False
+
+
+# ----------------------------------------------------------------------------- public entry points
+
+
+def _as_modes(modes: Any) -> tuple[Mode, ...]:
+    if isinstance(modes, Mode):
+        return (modes,)
+    items = v.sequence(modes, "modes", min_len=1)
+    for i, m in enumerate(items):
+        v.instance_of(m, Mode, f"modes[{i}]", "a posicast Mode")
+    return tuple(items)
+
+
+def _per_mode(value: Any, n: int, name: str, lo: float, hi: float, default: Any, **kw: Any) -> tuple[tuple[float, float], ...]:
+    """One ``(low, high)`` pair for every mode, or a sequence of ``n`` pairs."""
+    if value is None:
+        return tuple(default)
+    if isinstance(value, (list, tuple)) and len(value) == n and n > 1 and all(
+            isinstance(x, (list, tuple, np.ndarray)) for x in value):
+        return tuple(v.ordered_pair(x, f"{name}[{i}]", lo, hi, **kw) for i, x in enumerate(value))
+    if isinstance(value, (list, tuple)) and value and isinstance(value[0], (list, tuple, np.ndarray)):
+        raise ValueError(f"{name} must be one (low, high) pair or one pair per mode ({n}), got {len(value)} pairs")
+    p = v.ordered_pair(value, name, lo, hi, **kw)
+    return (p,) * n
+
+
+def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: Any = (0.9, 1.1),
+                    damping: Any = None, max_impulses: int | None = None, sample_period: float | None = None,
+                    max_duration: float | None = None, certify: bool = True, name: str = "optimal") -> OptimalShaper:
+    """The shortest positive shaper keeping the residual vibration ``<= vtol`` over bands around modes.
+
+    Parameters
+    ----------
+    modes : Mode or sequence of Mode
+        The modes (one to three is the benchmarked range; more work, slower).
+    vtol : float
+        Tolerable residual vibration (``reference="end"``), in (0, 1).
+    band : (low, high) or sequence of them
+        Frequency ratios ``omega / omega_mode`` to protect, ``0 < low <= high <= 1000``; one pair for every
+        mode or one per mode.  ``low == high`` is a single frequency.
+    damping : (low, high) or sequence of them, optional
+        Damping range of each mode (``0 <= low <= high < 1``); default each mode's own ``zeta``.
+    max_impulses : int, optional
+        At most this many impulses (a firmware's limit, e.g. RepRapFirmware's custom shaper), ``>= 2``.
+    sample_period : float, optional
+        Impulse times on multiples of this period [s] (a controller's step), ``> 0``.
+    max_duration : float, optional
+        Longest acceptable duration [s] (a smoothing bound), ``> 0``.
+    certify : bool
+        Compute the certified duration lower bound (a few more LPs).
+    name : str
+        The shaper's name.
+
+    Returns
+    -------
+    OptimalShaper
+        An ordinary :class:`~posicast.shapers.base.Shaper` with ``.optimality``.  When the limits do not
+        allow the bands (too wide for ``max_impulses``, a too short ``max_duration``, a coarse
+        ``sample_period``) the result says so: ``optimality.feasible`` is False, ``status`` is
+        ``"infeasible"`` and the shaper is the least-vibration one found.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Bad parameters (the message names them).
+
+    Examples
+    --------
+    >>> S = shortest_shaper(Mode(2 * math.pi, 0.0), vtol=0.05, band=(0.9, 1.1))
+    >>> S.optimality.feasible, S.n_impulses, round(S.duration, 4)
+    (True, 3, 0.8877)
+    >>> S.optimality.lower_bound <= S.duration
+    True
+    """
+    ms = _as_modes(modes)
+    tol = v.real_in_range(vtol, "vtol", 0.0, 1.0, lo_open=True, hi_open=True)
+    bands = _per_mode(band, len(ms), "band", 0.0, 1000.0, None, lo_open=True)
+    damps = _per_mode(damping, len(ms), "damping", 0.0, 1.0, [(m.zeta, m.zeta) for m in ms], hi_open=True)
+    n_max = None if max_impulses is None else v.integer_in_range(max_impulses, "max_impulses", 2, 1000)
+    ts = None if sample_period is None else v.positive(v.finite_real(sample_period, "sample_period"), "sample_period")
+    dmax = None if max_duration is None else v.positive(v.finite_real(max_duration, "max_duration"), "max_duration")
+    v.instance_of(certify, bool, "certify", "True or False")
+    v.instance_of(name, str, "name", "a string")
+
+    scale = max(m.omega * b[1] for m, b in zip(ms, bands))
+    prob = _Problem(ms, bands, damps, tol, scale)
+    h = 2 * math.pi / _GRID_PER_PERIOD
+    k_cap = _MAX_GRID if dmax is None else max(2, min(_MAX_GRID, int(math.floor(dmax * scale / h))))
+    u_cap = (dmax * scale) if dmax is not None else k_cap * h
+    K, A_grid, _, s_cap = _lp_shortest(prob, k_cap)
+    notes = []
+    if K is None:  # no positive shaper within the cap: the least-vibration grid shaper there
+        u, A = _clusters(np.arange(k_cap + 1) * h, A_grid)
+        ok = False
+        notes.append(f"no positive shaper of duration <= {u_cap / scale:.6g} s keeps V <= {tol:g} on the bands "
+                     f"(least polygon vibration there {s_cap:.4g})")
+        if n_max is not None and u.size > n_max:
+            u, A = _merge_to(u, A, n_max)
+    else:
+        u, A = _clusters(np.arange(K + 1) * h, A_grid)
+        u, A = _exchange(prob, u, A, None)
+        for u0, A0 in _closed_form_starts(prob):  # a closed form meeting the bands bounds the duration
+            if u0[-1] < u[-1] * (1 - 1e-9):
+                u1, A1 = _exchange(prob, u0, A0, None)
+                ok1 = max(p[3] for p in _peaks(prob, u1, A1, prob.vtol * 0.9)) <= prob.vtol * (1 + 1e-6)
+                u, A = (u1, A1) if ok1 and u1[-1] <= u0[-1] else (u0, A0)
+        ok = True
+        if n_max is not None and u.size > n_max:
+            u, A, ok = _limited(prob, u, A, n_max, K * h * 0.9, u_cap)
+            if not ok:
+                notes.append(f"the search found no shaper of {n_max} impulses keeping V <= {tol:g} on the bands "
+                             f"within {u_cap / scale:.6g} s (a local search: not a proof); this is the "
+                             "least-vibration shaper found")
+    if ok and ts is not None:
+        u, A, ok = _on_grid(prob, u, ts * scale, u_cap)
+        if not ok:
+            notes.append(f"no shaper on the {ts:g} s sample grid within the limits keeps V <= {tol:g}; "
+                         "this is the least-vibration one found")
+        elif n_max is not None and u.size > n_max:  # pragma: no cover - rounding never adds impulses
+            ok = False
+    if ok and dmax is not None and u[-1] > u_cap * (1 + 1e-9):
+        ok = False
+        notes.append(f"the shortest shaper lasts {u[-1] / scale:.6g} s, more than max_duration={dmax:g} s")
+    pk = _peaks(prob, u, A, tol * 0.5)
+    worst = max(p[3] for p in pk)
+    feasible = ok and worst <= tol * (1 + 1e-6)
+    kkt = _kkt(prob, u, A, pk) if feasible and ts is None else math.nan
+    lb = _lower_bound(prob, int(math.ceil(u[-1] / h)) + 1) / scale if certify and feasible else 0.0
+    status = "infeasible" if not feasible else ("optimal" if kkt <= 1e-5 else "feasible")
+    if feasible and status == "feasible" and ts is None:
+        notes.append(f"the solver stopped at a feasible point whose KKT residual {kkt:.2g} is above 1e-5")
+    active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= tol * (1 - 1e-5))
+    times = u / scale
+    opt = Optimality(feasible, status, tol, worst, float(times[-1]), min(lb, float(times[-1])), int(times.size),
+                     active, kkt, " ".join(notes))
+    params = {"vtol": tol, "band": bands[0] if len(bands) == 1 else bands,
+              "damping": damps[0] if len(damps) == 1 else damps}
+    for key, val in (("max_impulses", n_max), ("sample_period", ts), ("max_duration", dmax)):
+        if val is not None:
+            params[key] = val
+    return OptimalShaper(times, A, name=name, modes=ms, params=params, optimality=opt)
+
+
+def si_shaper(mode: Mode | Sequence[Mode], vtol: float = 0.05, band: Any = (0.9, 1.1), damping: Any = None,
+              max_impulses: int | None = None) -> OptimalShaper:
+    """The specified-insensitivity shaper (``design("si", ...)``): :func:`shortest_shaper` named ``"si"``."""
+    return shortest_shaper(mode, vtol=vtol, band=band, damping=damping, max_impulses=max_impulses, name="si")
