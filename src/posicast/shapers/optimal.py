@@ -205,7 +205,7 @@ def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, fl
         u = np.arange(K + 1) * h
         nu, ze, _, _ = prob.points(8, u[-1], 11, 3)
         q, sig = _qs(nu, ze)
-        return _lp(q, sig, u, u[-1])
+        return _lp(q, sig, u, u[-1], inner=False)  # circumscribed: a start just outside, the polish fixes it
 
     nu_min = min(m.omega * b[0] for m, b in zip(prob.modes, prob.bands)) / prob.scale
     k = max(2, min(k_cap, int(math.ceil(0.5 * math.pi / nu_min / h))))
@@ -304,16 +304,34 @@ def _linear_constraints(n: int, u_max: float | None) -> list[dict[str, Any]]:
 
 
 def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol: float) -> np.ndarray:
-    target = (vtol * (1 - _REL)) ** 2
+    """Shortest shaper from ``x0`` with ``V_j <= vtol``, as ``1 - V_j / target >= 0`` (scaled by the target,
+    so that a small vtol is as well conditioned as a large one)."""
+    target = vtol * (1 - _REL)
     grad = np.zeros(2 * n - 1)
     grad[n - 2] = 1.0
-    cons = _linear_constraints(n, None) + [{
-        "type": "ineq", "fun": lambda x: target - _v2_and_grad(x, n, q, sig)[0],
-        "jac": lambda x: -_v2_and_grad(x, n, q, sig)[1]}]
+
+    def con(x: np.ndarray) -> np.ndarray:
+        return 1.0 - np.sqrt(_v2_and_grad(x, n, q, sig)[0]) / target
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        v2, g = _v2_and_grad(x, n, q, sig)
+        return -g / (2.0 * np.maximum(np.sqrt(v2), 1e-300)[:, None] * target)
+
+    cons = _linear_constraints(n, None) + [{"type": "ineq", "fun": con, "jac": jac}]
     bounds = [(0, None)] * (n - 1) + [(0, 1)] * n
-    res = minimize(lambda x: x[n - 2], x0, jac=lambda x: grad, method="SLSQP", bounds=bounds, constraints=cons,
-                   options={"maxiter": 300, "ftol": 1e-13})
-    return res.x
+    best, last = None, x0
+    for shrink in (1.0, 0.99):  # a start at a degenerate point (ZVD: V = 0 twice) can stall SLSQP's line
+        y0 = x0.copy()          # search; slightly shorter times get past it.  Keep the shortest.
+        y0[: n - 1] *= shrink
+        res = minimize(lambda x: x[n - 2], y0, jac=lambda x: grad, method="SLSQP", bounds=bounds,
+                       constraints=cons, options={"maxiter": 120, "ftol": 1e-14})
+        last = res.x
+        ok = res.success and np.min(con(res.x)) >= -1e-6
+        if ok and (best is None or res.x[n - 2] < best[n - 2]):
+            best = res.x
+        if ok and res.x[n - 2] < x0[n - 2] * (1 - 1e-6):  # progress from the start: no retry needed
+            break
+    return last if best is None else best
 
 
 def _slsqp_minimax(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, u_max: float) -> np.ndarray:
@@ -365,28 +383,38 @@ def _point_arrays(prob: _Problem, pk: list[tuple[int, float, float, float]]) -> 
     return _qs(nu, np.array([p[2] for p in pk]))
 
 
-def _exchange(prob: _Problem, u: np.ndarray, A: np.ndarray, max_n: int | None) -> tuple[np.ndarray, np.ndarray]:
-    """Step 2: SLSQP on an exchanged set of frequencies until the dense grid is within vtol."""
+def _meets(prob: _Problem, u: np.ndarray, A: np.ndarray) -> bool:
+    return max(p[3] for p in _peaks(prob, u, A, prob.vtol * 0.9)) <= prob.vtol * (1 + 1e-6)
+
+
+def _exchange(prob: _Problem, u: np.ndarray, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Step 2: SLSQP on an exchanged set of frequencies until the dense grid is within vtol.
+
+    Returns the shortest iterate meeting the bands (or the start if it does and nothing shorter
+    does), else the last iterate, and whether it meets them."""
     nu, ze, _, _ = prob.points(6, u[-1], 11, 3)
     q, sig = _qs(nu, ze)
+    best = (u, A) if _meets(prob, u, A) else None
     for _ in range(8):
         n = u.size
         x = _slsqp_shortest(np.concatenate([u[1:], A]), n, q, sig, prob.vtol)
         u_new, A_new = _unpack(x, n)
-        keep = A_new > 1e-10  # drop vanished impulses, merge coincident ones
+        keep = A_new > 1e-10  # drop vanished impulses
         u_new, A_new = u_new[keep] - u_new[keep][0], A_new[keep] / A_new[keep].sum()
         pk = _peaks(prob, u_new, A_new, prob.vtol * 0.9)
-        worst = max(p[3] for p in pk)
-        if np.all(np.diff(u_new) > 1e-9) and worst <= prob.vtol * (1 + 1e-6):
-            return u_new, A_new
-        if worst <= prob.vtol * (1 + 1e-6) or (max_n is not None and keep.sum() < n):
-            u, A = u_new, A_new
+        ordered = bool(np.all(np.diff(u_new) > 1e-9 * max(u_new[-1], 1.0)))
+        if ordered and max(p[3] for p in pk) <= prob.vtol * (1 + 1e-6):
+            if best is None or u_new[-1] <= best[0][-1]:
+                best = (u_new, A_new)
+            return best[0], best[1], True
         over = [p for p in pk if p[3] > prob.vtol * (1 - 1e-3)]
         qa, sa = _point_arrays(prob, over)
         q, sig = np.concatenate([q, qa]), np.concatenate([sig, sa])
-        if np.all(np.diff(u_new) > 1e-9):
+        if ordered:
             u, A = u_new, A_new
-    return u, A
+    if best is not None:
+        return best[0], best[1], True
+    return u, A, False
 
 
 def _closed_form_starts(prob: _Problem) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -481,8 +509,8 @@ def _limited(prob: _Problem, u: np.ndarray, A: np.ndarray, n: int, u_lb: float,
             if fallback is None or worst < fallback[0]:
                 fallback = (worst, *_unpack(x, n))
             if worst <= prob.vtol * (1 - 1e-4):
-                uu, AA = _exchange(prob, *_unpack(x, n), n)
-                if best is None or uu[-1] < best[0]:
+                uu, AA, met = _exchange(prob, *_unpack(x, n))
+                if met and (best is None or uu[-1] < best[0]):
                     best = (uu[-1], uu, AA)
                 break
             over = [p for p in pk if p[3] > 0.8 * max(prob.vtol, worst)]
@@ -634,14 +662,21 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
         if n_max is not None and u.size > n_max:
             u, A = _merge_to(u, A, n_max)
     else:
-        u, A = _clusters(np.arange(K + 1) * h, A_grid)
-        u, A = _exchange(prob, u, A, None)
+        u, A, ok = _exchange(prob, *_clusters(np.arange(K + 1) * h, A_grid))
         for u0, A0 in _closed_form_starts(prob):  # a closed form meeting the bands bounds the duration
-            if u0[-1] < u[-1] * (1 - 1e-9):
-                u1, A1 = _exchange(prob, u0, A0, None)
-                ok1 = max(p[3] for p in _peaks(prob, u1, A1, prob.vtol * 0.9)) <= prob.vtol * (1 + 1e-6)
-                u, A = (u1, A1) if ok1 and u1[-1] <= u0[-1] else (u0, A0)
-        ok = True
+            if not ok or u0[-1] < u[-1] * (1 - 1e-9):
+                u1, A1, _ = _exchange(prob, u0, A0)  # meets the bands: the start does
+                if not ok or u1[-1] < u[-1]:
+                    u, A, ok = u1, A1, True
+        for _ in range(2):  # re-polish from the result while it is not a KKT point (SLSQP can stall near
+            if not ok or _kkt(prob, u, A, _peaks(prob, u, A, tol * 0.5)) <= 1e-5:  # degenerate starts)
+                break
+            u1, A1, ok1 = _exchange(prob, u, A)
+            if not (ok1 and u1[-1] < u[-1] * (1 - 1e-12)):
+                break
+            u, A = u1, A1
+        if not ok:
+            notes.append("the polish did not reach a shaper meeting the bands on the dense grid")
         if n_max is not None and u.size > n_max:
             u, A, ok = _limited(prob, u, A, n_max, K * h * 0.9, u_cap)
             if not ok:
