@@ -281,3 +281,17 @@ def test_infeasible_duration_bound_is_a_result():
     assert not opt.feasible and opt.status == "infeasible" and "no positive shaper" in opt.message
     assert S.duration <= 0.5 and opt.max_vibration > 0.05
     assert worst_v(S, [ONE_HZ], (0.8, 1.2)) == pytest.approx(opt.max_vibration, rel=1e-6)
+
+
+def test_readme_example():
+    """README "Optimal shapers" runs as printed (the block is a doctest)."""
+    import doctest
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("### Optimal shapers"):]
+    block = section[section.index("```python") + len("```python"): section.index("```", section.index("```python") + 9)]
+    test = doctest.DocTestParser().get_doctest(block, {}, "README optimal", "README.md", 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 6
