@@ -66,9 +66,9 @@ def test_si_at_zero_width_is_the_two_impulse_closed_form_and_zv_in_the_limit():
     assert abs(design("si", ONE_HZ, vtol=1e-6, band=(1, 1)).duration - zv.duration) < 1e-6
     # damped: vtol -> 0 gives the damped ZV (seed 000 eq. 4)
     m = Mode(10.0, 0.1)
-    S, Z = design("si", m, vtol=1e-7, band=(1, 1)), design("zv", m)
-    np.testing.assert_allclose(S.times, Z.times, atol=1e-6 * Z.duration)
-    np.testing.assert_allclose(S.amplitudes, Z.amplitudes, atol=1e-6)
+    S, Z = design("si", m, vtol=1e-6, band=(1, 1)), design("zv", m)
+    np.testing.assert_allclose(S.times, Z.times, atol=2e-6 * Z.duration)
+    np.testing.assert_allclose(S.amplitudes, Z.amplitudes, atol=2e-6)
 
 
 def test_si_tends_to_zvd_as_the_band_shrinks():
@@ -243,8 +243,8 @@ def test_three_modes():
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [
-    ({"vtol": 0.0}, ValueError, r"vtol must be in \(0, 1\)"),
-    ({"vtol": 1.5}, ValueError, r"vtol must be in \(0, 1\)"),
+    ({"vtol": 0.0}, ValueError, r"vtol must be in \[1e-06, 1\)"),
+    ({"vtol": 1.5}, ValueError, r"vtol must be in \[1e-06, 1\)"),
     ({"vtol": "5 %"}, TypeError, "vtol must be a real number"),
     ({"band": (1.2, 0.9)}, ValueError, "band must be a .low, high. pair with low <= high"),
     ({"band": (0.0, 1.1)}, ValueError, r"band\[0\] must be in \(0, 1000\]"),
@@ -265,6 +265,8 @@ def test_bad_parameters_are_named(kwargs, exc, match):
 def test_bad_modes_and_design_parameters_are_named():
     with pytest.raises(ValueError, match="modes must have at least 1"):
         shortest_shaper([])
+    with pytest.raises(ValueError, match="modes must be at most 10 modes"):
+        shortest_shaper([Mode(float(k), 0.0) for k in range(1, 12)])
     with pytest.raises(TypeError, match=r"modes\[1\] must be a posicast Mode"):
         shortest_shaper([ONE_HZ, (1.0, 0.1)])
     with pytest.raises(ValueError, match="one pair per mode"):
@@ -273,6 +275,19 @@ def test_bad_modes_and_design_parameters_are_named():
         design("si", ONE_HZ, sample_rate=1000.0)
     with pytest.raises(TypeError, match="kind 'um_zv' takes no parameter 'vtol'"):
         design("um_zv", ONE_HZ, vtol=0.05)
+
+
+def test_hostile_bands_and_grids_are_results_within_the_budget():
+    # a band too wide for the LP size limit, a sample grid coarser than the whole shaper: results, not errors
+    S = shortest_shaper(Mode(10.0, 0.03), band=(0.001, 1000.0))
+    assert not S.optimality.feasible and "narrow the bands" in S.optimality.message
+    S = shortest_shaper(Mode(10.0, 0.03), sample_period=1e3)
+    assert not S.optimality.feasible and S.n_impulses >= 1 and abs(S.dc_gain - 1) < 1e-12
+    # a grid far finer than the shaper: the continuous design, rounded
+    S = shortest_shaper(Mode(10.0, 0.03), sample_period=1e-12)
+    assert S.optimality.feasible
+    with pytest.raises(ValueError, match="omega up to .* rad/s: its shortest time interval"):
+        shortest_shaper(Mode(1e100, 0.1))
 
 
 def test_infeasible_duration_bound_is_a_result():

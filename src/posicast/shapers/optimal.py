@@ -34,6 +34,7 @@ Method
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from itertools import product
 from typing import Any, Sequence
@@ -43,7 +44,7 @@ from scipy.optimize import linprog, lsq_linear, minimize, minimize_scalar
 
 from .. import _validate as v
 from ..modes import Mode
-from .base import Shaper
+from .base import Shaper, check_resolution
 from .ei import ei_exact, ei_multi_hump
 from .lumped import zvdk_impulses, mzv_impulses
 
@@ -53,6 +54,9 @@ _N_DIR = 12                  # polygon directions of the LP
 _COS = math.cos(math.pi / _N_DIR)
 _GRID_PER_PERIOD = 48        # LP time grid: points per period of the highest frequency
 _MAX_GRID = 2500             # most LP time-grid points (a duration cap: ~50 periods of the highest frequency)
+_MAX_LP = 4e5                # most LP matrix entries (~0.3 s of HiGHS); beyond, the search stops and says so
+_BUDGET = 2.5                # seconds after which the polish and the searches stop with the best found
+_MAX_MODES = 10
 _REL = 1e-7                  # relative slack: the NLP aims at vtol (1 - _REL); "active" within 1e-5
 
 
@@ -137,6 +141,10 @@ class _Problem:
     dampings: tuple[tuple[float, float], ...]
     vtol: float
     scale: float  # times are handled in units of 1 / scale (scale = highest band frequency)
+    deadline: float = math.inf  # time.perf_counter() after which loops stop with their best so far
+
+    def late(self) -> bool:
+        return time.perf_counter() > self.deadline
 
     def points(self, per_cycle: float, duration: float, n_min: int, n_zeta: int) -> tuple[np.ndarray, ...]:
         """Sample frequencies ``(nu, zeta, mode index, ratio)``: ``per_cycle`` points per oscillation of V."""
@@ -197,8 +205,14 @@ def _lp(q: np.ndarray, sig: np.ndarray, u: np.ndarray, u_end: float, first_order
     return (s / _COS if inner else s), res.x[:K]
 
 
-def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, float, float]:
-    """Bisection on the grid length: (shortest K or None, its amplitudes, grid step h, s* at the cap)."""
+def _lp_size(prob: _Problem, K: int) -> float:
+    h = 2 * math.pi / _GRID_PER_PERIOD
+    return float(prob.points(8, K * h, 11, 3)[0].size * _N_DIR) * (2 * K + 4)
+
+
+def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, float, float, int]:
+    """Bisection on the grid length: (shortest K or None, its amplitudes, grid step h, s* at the largest K
+    solved, that K).  None when no K up to ``k_cap`` (or up to the LP size limit) meets the bands."""
     h = 2 * math.pi / _GRID_PER_PERIOD  # scale = the highest frequency: its period is 2 pi
 
     def solve(K: int) -> tuple[float, np.ndarray]:
@@ -209,17 +223,20 @@ def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, fl
 
     nu_min = min(m.omega * b[0] for m, b in zip(prob.modes, prob.bands)) / prob.scale
     k = max(2, min(k_cap, int(math.ceil(math.pi / nu_min / h))))  # ZV's duration at the lowest frequency
+    while k > 2 and _lp_size(prob, k) > _MAX_LP:
+        k //= 2
     lo, s_lo = 0, 1.0
     while True:
         s, A = solve(k)
         if s <= prob.vtol:
             break
-        if k >= k_cap:
-            return None, A, h, s
-        lo, s_lo, k = k, s, min(k_cap, 2 * k)
+        nxt = min(k_cap, 2 * k)
+        if k >= k_cap or _lp_size(prob, nxt) > _MAX_LP or prob.late():
+            return None, A, h, s, k
+        lo, s_lo, k = k, s, nxt
     best, hi, s_hi = (k, A), k, s
     last = 0
-    while hi - lo > 1:  # regula falsi on s*(K) = vtol, a bisection step when one end does not move
+    while hi - lo > 1 and not prob.late():  # regula falsi on s*(K) = vtol, bisection when an end stays
         mid = lo + (hi - lo) * (s_lo - prob.vtol) / (s_lo - s_hi) if last != 2 else 0.5 * (lo + hi)
         mid = int(min(hi - 1, max(lo + 1, round(mid))))
         s, A = solve(mid)
@@ -229,7 +246,7 @@ def _lp_shortest(prob: _Problem, k_cap: int) -> tuple[int | None, np.ndarray, fl
         else:
             lo, s_lo = mid, s
             last = 2 if last == 1 else -1
-    return best[0], best[1], h, 0.0
+    return best[0], best[1], h, 0.0, best[0]
 
 
 def _lower_bound(prob: _Problem, k_hi: int) -> float:
@@ -239,6 +256,8 @@ def _lower_bound(prob: _Problem, k_hi: int) -> float:
     slack = h * h / 8.0  # nu <= 1: omega^2 h^2 / 8 in scaled units
 
     def infeasible(K: int) -> bool:
+        if _lp_size(prob, K) > _MAX_LP:
+            return False  # not tried: no bound from it
         u = np.arange(K + 1) * h
         nu, ze, _, _ = prob.points(8, u[-1], 11, 3)
         q, sig = _qs(nu, ze)
@@ -306,7 +325,16 @@ def _linear_constraints(n: int, u_max: float | None) -> list[dict[str, Any]]:
     return cons
 
 
-def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol: float) -> np.ndarray:
+def _stop_when(late: Any) -> Any:
+    """An optimiser callback that ends the run (StopIteration, scipy >= 1.11) once ``late()``."""
+    def callback(*_: Any) -> None:
+        if late():
+            raise StopIteration
+    return callback
+
+
+def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol: float,
+                    late: Any = lambda: False) -> np.ndarray:
     """Shortest shaper from ``x0`` with ``V_j <= vtol``, as ``1 - V_j / target >= 0`` (scaled by the target,
     so that a small vtol is as well conditioned as a large one)."""
     target = vtol * (1 - _REL)
@@ -327,7 +355,7 @@ def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol
         y0 = x0.copy()          # search; slightly shorter times get past it.  Keep the shortest.
         y0[: n - 1] *= shrink
         res = minimize(lambda x: x[n - 2], y0, jac=lambda x: grad, method="SLSQP", bounds=bounds,
-                       constraints=cons, options={"maxiter": 120, "ftol": 1e-14})
+                       constraints=cons, options={"maxiter": 120, "ftol": 1e-14}, callback=_stop_when(late))
         last = res.x
         ok = res.success and np.min(con(res.x)) >= -1e-6
         if ok and (best is None or res.x[n - 2] < best[n - 2]):
@@ -337,7 +365,8 @@ def _slsqp_shortest(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, vtol
     return last if best is None else best
 
 
-def _slsqp_minimax(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, u_max: float) -> np.ndarray:
+def _slsqp_minimax(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, u_max: float,
+                   late: Any = lambda: False) -> np.ndarray:
     """Least worst ``V^2`` with ``n`` impulses within ``[0, u_max]`` (variables x and the level s)."""
     y0 = np.concatenate([x0, [float(np.max(_v2_and_grad(x0, n, q, sig)[0]))]])
     cons = [{"type": c["type"], "fun": (lambda y, f=c["fun"]: f(y[:-1])),
@@ -349,7 +378,7 @@ def _slsqp_minimax(x0: np.ndarray, n: int, q: np.ndarray, sig: np.ndarray, u_max
     e[-1] = 1.0
     bounds = [(0, u_max)] * (n - 1) + [(0, 1)] * n + [(0, None)]
     res = minimize(lambda y: y[-1], y0, jac=lambda y: e, method="SLSQP", bounds=bounds, constraints=cons,
-                   options={"maxiter": 300, "ftol": 1e-14})
+                   options={"maxiter": 300, "ftol": 1e-14}, callback=_stop_when(late))
     return res.x[:-1]
 
 
@@ -367,10 +396,11 @@ def _peaks(prob: _Problem, u: np.ndarray, A: np.ndarray, refine_above: float) ->
             if n == 1:
                 out.append((i, float(r[0]), float(z), float(V[0])))
                 continue
-            loc = [0, n - 1] + [k for k in range(1, n - 1) if V[k] >= V[k - 1] and V[k] >= V[k + 1]]
-            for k in loc:
+            inner = np.flatnonzero((V[1:-1] >= V[:-2]) & (V[1:-1] >= V[2:])) + 1
+            tall = set(inner[np.argsort(V[inner])[-25:]].tolist())  # refine the 25 tallest peaks at most
+            for k in [0, n - 1] + inner.tolist():
                 rk, vk = float(r[k]), float(V[k])
-                if 0 < k < n - 1 and vk > refine_above:
+                if k in tall and vk > refine_above:
                     def f(x: float, z: float = float(z)) -> float:
                         qq, ss = _qs(np.array([x * nu_per]), np.array([z]))
                         return -float(np.abs(_z(u, A, qq, ss, u[-1]))[0])
@@ -398,9 +428,11 @@ def _exchange(prob: _Problem, u: np.ndarray, A: np.ndarray) -> tuple[np.ndarray,
     nu, ze, _, _ = prob.points(6, u[-1], 11, 3)
     q, sig = _qs(nu, ze)
     best = (u, A) if _meets(prob, u, A) else None
-    for _ in range(8):
+    for rnd in range(8):
+        if rnd and prob.late():
+            break
         n = u.size
-        x = _slsqp_shortest(np.concatenate([u[1:], A]), n, q, sig, prob.vtol)
+        x = _slsqp_shortest(np.concatenate([u[1:], A]), n, q, sig, prob.vtol, prob.late)
         u_new, A_new = _unpack(x, n)
         keep = A_new > 1e-10  # drop vanished impulses
         u_new, A_new = u_new[keep] - u_new[keep][0], A_new[keep] / A_new[keep].sum()
@@ -432,6 +464,8 @@ def _closed_form_starts(prob: _Problem) -> list[tuple[np.ndarray, np.ndarray]]:
                      lambda: ei_multi_hump(m, prob.vtol, 3)]
     out = []
     for build in builders:
+        if prob.late():
+            break
         try:
             t, a = build()
         except (ValueError, RuntimeError):  # a family without a solution at this (zeta, vtol)
@@ -505,8 +539,8 @@ def _limited(prob: _Problem, u: np.ndarray, A: np.ndarray, n: int, u_lb: float,
     for u0, A0 in starts:
         x = np.concatenate([u0[1:] * D0 / max(u0[-1], 1e-12), A0])
         D = D0
-        while D <= u_cap * (1 + 1e-12):
-            x = _slsqp_minimax(x, n, q, sig, D)
+        while D <= u_cap * (1 + 1e-12) and not prob.late():
+            x = _slsqp_minimax(x, n, q, sig, D, prob.late)
             pk = _peaks(prob, *_unpack(x, n), prob.vtol * 0.5)
             worst = max(p[3] for p in pk)
             if fallback is None or worst < fallback[0]:
@@ -528,41 +562,77 @@ def _limited(prob: _Problem, u: np.ndarray, A: np.ndarray, n: int, u_lb: float,
     return best[1], best[2], True
 
 
-def _amplitudes_at(prob: _Problem, u: np.ndarray) -> tuple[float, np.ndarray]:
-    """Least worst V over amplitudes at fixed times ``u`` (LP at dense frequencies, inscribed polygon)."""
+def _amplitudes_at(prob: _Problem, u: np.ndarray, A_start: np.ndarray | None = None,
+                   exact: bool = True) -> tuple[float, np.ndarray]:
+    """Least worst V over amplitudes at fixed times ``u``: an LP (circumscribed polygon, a lower value than
+    the exact one), then if ``exact`` SLSQP on the exact ``V^2`` at dense frequencies from the better of
+    the LP's amplitudes and ``A_start``.  Returns (worst V at those frequencies, amplitudes)."""
+    if not exact:  # a screening value: fewer frequencies, still a lower bound of the exact worst V
+        nu, ze, _, _ = prob.points(8, u[-1], 11, 3)
+        return _lp(*_qs(nu, ze), u, u[-1], inner=False)
     nu, ze, _, _ = prob.points(24, u[-1], 41, 5)
     q, sig = _qs(nu, ze)
-    return _lp(q, sig, u, u[-1])
+    _, A0 = _lp(q, sig, u, u[-1], inner=False)
+    W = np.exp(np.multiply.outer(q, u) - sig[:, None] * u[-1])
+    n = u.size
+
+    def v2(y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        z = W @ y[:n]
+        return np.abs(z) ** 2, 2.0 * (np.conj(z)[:, None] * W).real
+
+    if A_start is not None and A_start.size == n and np.max(v2(A_start)[0]) < np.max(v2(A0)[0]):
+        A0 = A_start
+    y0 = np.concatenate([A0, [float(np.max(v2(A0)[0]))]])
+    cons = [{"type": "ineq", "fun": lambda y: y[-1] - v2(y)[0],
+             "jac": lambda y: np.hstack([-v2(y)[1], np.ones((q.size, 1))])},
+            {"type": "eq", "fun": lambda y: np.array([y[:n].sum() - 1.0]),
+             "jac": lambda y: np.concatenate([np.ones(n), [0.0]])[None, :]}]
+    e = np.zeros(n + 1)
+    e[-1] = 1.0
+    res = minimize(lambda y: y[-1], y0, jac=lambda y: e, method="SLSQP", bounds=[(0, 1)] * n + [(0, None)],
+                   constraints=cons, options={"maxiter": 100, "ftol": 1e-15})
+    A = np.clip(res.x[:n], 0.0, None)
+    A = A / A.sum()
+    if np.max(v2(A)[0]) > np.max(v2(A0)[0]):
+        A = A0
+    return float(np.sqrt(np.max(v2(A)[0]))), A
 
 
-def _on_grid(prob: _Problem, u: np.ndarray, step: float, u_cap: float) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Times rounded to multiples of ``step`` (scaled units), amplitudes re-solved; stretched until feasible."""
+def _on_grid(prob: _Problem, u: np.ndarray, A: np.ndarray, step: float,
+             u_cap: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Times rounded to multiples of ``step`` (scaled units), amplitudes re-solved; stretched until feasible.
+
+    Each stretch tries the floor/ceil roundings of the times (up to 64), screened by the LP, shortest first;
+    the exact amplitude problem is solved for the screened candidates."""
     best = None
-    for stretch in range(0, 200):
+    for stretch in range(0, 40 if step > 1e-9 * u[-1] else 1):  # a grid finer than the resolution: round once
         D = u[-1] + stretch * step
-        if D > u_cap + step:
+        if D > u_cap + step or (stretch and prob.late()):
             break
         k = u * (D / u[-1]) / step if u[-1] > 0 else u / step
         inner = k[1:]
         choices = [np.unique(np.array([np.floor(x), np.ceil(x)])) for x in inner]
-        combos = list(product(*choices)) if np.prod([c.size for c in choices]) <= 256 else [tuple(np.round(inner))]
-        found = None
-        for c in sorted(combos, key=lambda c: c[-1]):
+        combos = list(product(*choices)) if np.prod([c.size for c in choices]) <= 64 else [tuple(np.round(inner))]
+        screened = []
+        for c in combos:
             kk = np.unique(np.concatenate([[0.0], np.array(c, dtype=float)]))
-            if found is not None and kk[-1] > found[0][-1]:
-                break
-            s, A = _amplitudes_at(prob, kk * step)
-            if best is None or s < best[0]:
-                best = (s, kk * step, A)
-            if s <= prob.vtol * (1 - 1e-6):
-                uu, AA = kk * step, A
+            s_lp, _ = _amplitudes_at(prob, kk * step, exact=False)
+            if s_lp <= prob.vtol:  # the LP's value is a lower bound of the exact one
+                screened.append((kk[-1], s_lp, kk))
+        for _, _, kk in sorted(screened, key=lambda c: (c[0], c[1]))[:4]:
+            uu = kk * step
+            s_ex, AA = _amplitudes_at(prob, uu, A if kk.size == A.size else None)
+            if best is None or s_ex < best[0]:
+                best = (s_ex, uu, AA)
+            if s_ex <= prob.vtol * (1 + 1e-9):
                 pk = _peaks(prob, uu, AA, prob.vtol * 0.9)
                 if max(p[3] for p in pk) <= prob.vtol * (1 + 1e-6):
-                    found = (uu, AA)
-        if found is not None:
-            keep = found[1] > 1e-12
-            return found[0][keep], found[1][keep] / found[1][keep].sum(), True
-    assert best is not None
+                    keep = AA > 1e-12
+                    return uu[keep], AA[keep] / AA[keep].sum(), True
+    if best is None:
+        kk = np.unique(np.round(u / step))
+        s_ex, AA = _amplitudes_at(prob, kk * step, A if kk.size == A.size else None)
+        best = (s_ex, kk * step, AA)
     return best[1], best[2], False
 
 
@@ -640,7 +710,10 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
     True
     """
     ms = _as_modes(modes)
-    tol = v.real_in_range(vtol, "vtol", 0.0, 1.0, lo_open=True, hi_open=True)
+    if len(ms) > _MAX_MODES:
+        raise ValueError(f"modes must be at most {_MAX_MODES} modes (each adds a band to every LP), got {len(ms)}: "
+                         "design for the modes that matter, or in groups")
+    tol = v.real_in_range(vtol, "vtol", 1e-6, 1.0, hi_open=True, hint=" (below 1e-6 the constraints are rounding)")
     bands = _per_mode(band, len(ms), "band", 0.0, 1000.0, None, lo_open=True)
     damps = _per_mode(damping, len(ms), "damping", 0.0, 1.0, [(m.zeta, m.zeta) for m in ms], hi_open=True)
     n_max = None if max_impulses is None else v.integer_in_range(max_impulses, "max_impulses", 2, 1000)
@@ -650,28 +723,36 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
     v.instance_of(name, str, "name", "a string")
 
     scale = max(m.omega * b[1] for m, b in zip(ms, bands))
-    prob = _Problem(ms, bands, damps, tol, scale)
+    prob = _Problem(ms, bands, damps, tol, scale, time.perf_counter() + _BUDGET)
     h = 2 * math.pi / _GRID_PER_PERIOD
     k_cap = _MAX_GRID if dmax is None else max(2, min(_MAX_GRID, int(math.floor(dmax * scale / h))))
     u_cap = (dmax * scale) if dmax is not None else k_cap * h
-    K, A_grid, _, s_cap = _lp_shortest(prob, k_cap)
+    K, A_grid, _, s_cap, k_done = _lp_shortest(prob, k_cap)
     notes = []
     if K is None:  # no positive shaper within the cap: the least-vibration grid shaper there
-        u, A = _clusters(np.arange(k_cap + 1) * h, A_grid)
+        u, A = _clusters(np.arange(k_done + 1) * h, A_grid)
         ok = False
-        notes.append(f"no positive shaper of duration <= {u_cap / scale:.6g} s keeps V <= {tol:g} on the bands "
-                     f"(least polygon vibration there {s_cap:.4g})")
+        if prob.late():
+            notes.append(f"the duration search stopped at the time budget ({_BUDGET:g} s) at {k_done * h / scale:.6g} s "
+                         f"(least polygon vibration there {s_cap:.4g} > vtol {tol:g})")
+        elif k_done >= k_cap:
+            notes.append(f"no positive shaper of duration <= {u_cap / scale:.6g} s keeps V <= {tol:g} on the "
+                         f"bands (least polygon vibration there {s_cap:.4g})")
+        else:
+            notes.append(f"the search stopped at duration {k_done * h / scale:.6g} s (least polygon vibration "
+                         f"there {s_cap:.4g} > vtol {tol:g}): a longer LP would exceed {_MAX_LP:g} entries; "
+                         "narrow the bands or raise vtol")
         if n_max is not None and u.size > n_max:
             u, A = _merge_to(u, A, n_max)
     else:
         u, A, ok = _exchange(prob, *_clusters(np.arange(K + 1) * h, A_grid))
         for u0, A0 in _closed_form_starts(prob):  # a closed form meeting the bands bounds the duration
             if not ok or u0[-1] < u[-1] * (1 - 1e-9):
-                u1, A1, _ = _exchange(prob, u0, A0)  # meets the bands: the start does
-                if not ok or u1[-1] < u[-1]:
+                u1, A1, _ = _exchange(prob, u0, A0) if not prob.late() else (u0, A0, True)  # the start meets
+                if not ok or u1[-1] < u[-1]:                                                 # the bands
                     u, A, ok = u1, A1, True
         for _ in range(2):  # re-polish from the result while it is not a KKT point (SLSQP can stall near
-            if not ok or _kkt(prob, u, A, _peaks(prob, u, A, tol * 0.5)) <= 1e-5:  # degenerate starts)
+            if not ok or prob.late() or _kkt(prob, u, A, _peaks(prob, u, A, tol * 0.5)) <= 1e-5:  # degenerate
                 break
             u1, A1, ok1 = _exchange(prob, u, A)
             if not (ok1 and u1[-1] < u[-1] * (1 - 1e-12)):
@@ -687,7 +768,7 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
                              f"within {search_cap / scale:.6g} s (4x the unlimited optimum; a local search, not a "
                              "proof); this is the least-vibration shaper found")
     if ok and ts is not None:
-        u, A, ok = _on_grid(prob, u, ts * scale, u_cap)
+        u, A, ok = _on_grid(prob, u, A, ts * scale, u_cap)
         if not ok:
             notes.append(f"no shaper on the {ts:g} s sample grid within the limits keeps V <= {tol:g}; "
                          "this is the least-vibration one found")
@@ -696,6 +777,8 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
     if ok and dmax is not None and u[-1] > u_cap * (1 + 1e-9):
         ok = False
         notes.append(f"the shortest shaper lasts {u[-1] / scale:.6g} s, more than max_duration={dmax:g} s")
+    if prob.late():
+        notes.append(f"the searches stopped at the time budget ({_BUDGET:g} s) with the best shaper found")
     pk = _peaks(prob, u, A, tol * 0.5)
     worst = max(p[3] for p in pk)
     feasible = ok and worst <= tol * (1 + 1e-6)
@@ -706,6 +789,9 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
         notes.append(f"the solver stopped at a feasible point whose KKT residual {kkt:.2g} is above 1e-5")
     active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= tol * (1 - 1e-5))
     times = u / scale
+    if times.size >= 2:  # a mode too fast for seconds as the time unit: refused as design() refuses it
+        check_resolution(float(times[-1]), float(times[-1]),
+                         f"an optimal shaper for omega up to {scale:g} rad/s")
     opt = Optimality(feasible, status, tol, worst, float(times[-1]), min(lb, float(times[-1])), int(times.size),
                      active, kkt, " ".join(notes))
     params = {"vtol": tol, "band": bands[0] if len(bands) == 1 else bands,
