@@ -46,7 +46,8 @@ def _si_table(report: Report, mode: Mode) -> dict:
                 best = (label, C.duration)
         o = S.optimality
         rows.append([f"{band[0]:g}-{band[1]:g}", S.duration / mode.damped_period, S.n_impulses,
-                     _worst(S, [mode], band), o.lower_bound / mode.damped_period, o.status, o.kkt_residual,
+                     _worst(S, [mode], band), o.lower_bound / mode.damped_period, o.status,
+                     math.nan if o.kkt_residual is None else o.kkt_residual,
                      best[0] if best else "none", best[1] / mode.damped_period if best else math.nan])
     report.table(["band (ratio)", "SI duration [T_d]", "impulses", "max V on band", "certified lower bound [T_d]",
                   "status", "KKT residual", "shortest closed form meeting the band", "its duration [T_d]"], rows)

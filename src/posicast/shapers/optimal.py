@@ -44,7 +44,7 @@ from scipy.optimize import linprog, lsq_linear, minimize, minimize_scalar
 
 from .. import _validate as v
 from ..modes import Mode
-from .base import Shaper, check_resolution
+from .base import TIME_RESOLUTION, Shaper, check_resolution
 from .ei import ei_exact, ei_multi_hump
 from .lumped import zvdk_impulses, mzv_impulses
 
@@ -94,8 +94,9 @@ class Optimality:
     n_impulses : int
     active : tuple of ActiveConstraint
         The frequencies where ``V`` touches ``vtol`` (within 1e-5 relative).
-    kkt_residual : float
-        ``|grad t_n - J^T lambda| / |grad t_n|`` over the active constraints (nan if not computed).
+    kkt_residual : float or None
+        ``|grad t_n - J^T lambda| / |grad t_n|`` over the active constraints (None where not computed:
+        an infeasible result, or times rounded to a sample grid).
     message : str
     """
 
@@ -107,7 +108,7 @@ class Optimality:
     lower_bound: float
     n_impulses: int
     active: tuple[ActiveConstraint, ...]
-    kkt_residual: float
+    kkt_residual: float | None
     message: str
 
     @property
@@ -119,9 +120,10 @@ class Optimality:
         """One paragraph for a report or a terminal."""
         lb = f", certified lower bound {self.lower_bound:.6g} s (gap {100 * self.gap:.2f} %)" \
             if self.lower_bound > 0 else ""
+        kkt = "" if self.kkt_residual is None else f", KKT residual {self.kkt_residual:.2g}"
         return (f"{self.status}: {self.n_impulses} impulses, duration {self.duration:.6g} s{lb}; "
-                f"max V {self.max_vibration:.4g} (vtol {self.vtol:g}), {len(self.active)} active constraints, "
-                f"KKT residual {self.kkt_residual:.2g}. {self.message}")
+                f"max V {self.max_vibration:.4g} (vtol {self.vtol:g}), {len(self.active)} active constraints"
+                f"{kkt}. {self.message}")
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -483,7 +485,7 @@ def _closed_form_starts(prob: _Problem) -> list[tuple[np.ndarray, np.ndarray]]:
 def _kkt(prob: _Problem, u: np.ndarray, A: np.ndarray, pk: list[tuple[int, float, float, float]]) -> float:
     n = u.size
     if n < 2:
-        return math.nan
+        return math.inf
     act = [p for p in pk if p[3] >= prob.vtol * (1 - 1e-5)]
     cols = []
     if act:
@@ -767,7 +769,13 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
                 notes.append(f"the search found no shaper of {n_max} impulses keeping V <= {tol:g} on the bands "
                              f"within {search_cap / scale:.6g} s (4x the unlimited optimum; a local search, not a "
                              "proof); this is the least-vibration shaper found")
-    if ok and ts is not None:
+    if ok and ts is not None and ts * scale > u_cap:
+        ok = False
+        notes.append(f"sample_period={ts:g} s is longer than the longest shaper searched ({u_cap / scale:.6g} s)")
+    elif ok and ts is not None and ts * scale < TIME_RESOLUTION * u[-1]:
+        notes.append(f"sample_period={ts:g} s is below the time resolution ({TIME_RESOLUTION:g} x duration): "
+                     "the times are left as designed")
+    elif ok and ts is not None:
         u, A, ok = _on_grid(prob, u, A, ts * scale, u_cap)
         if not ok:
             notes.append(f"no shaper on the {ts:g} s sample grid within the limits keeps V <= {tol:g}; "
@@ -782,9 +790,10 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
     pk = _peaks(prob, u, A, tol * 0.5)
     worst = max(p[3] for p in pk)
     feasible = ok and worst <= tol * (1 + 1e-6)
-    kkt = _kkt(prob, u, A, pk) if feasible and ts is None else math.nan
+    kkt = _kkt(prob, u, A, pk) if feasible and ts is None else None
+    kkt = kkt if kkt is not None and math.isfinite(kkt) else None
     lb = _lower_bound(prob, int(math.floor(u[-1] / h))) / scale if certify and feasible else 0.0
-    status = "infeasible" if not feasible else ("optimal" if kkt <= 1e-5 else "feasible")
+    status = "infeasible" if not feasible else ("optimal" if kkt is not None and kkt <= 1e-5 else "feasible")
     if feasible and status == "feasible" and ts is None:
         notes.append(f"the solver stopped at a feasible point whose KKT residual {kkt:.2g} is above 1e-5")
     active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= tol * (1 - 1e-5))
