@@ -523,6 +523,8 @@ def entry_table() -> list[Entry]:
         E("design[si]", lambda **k: pc.design("si", mode(), **k), lambda: {"vtol": 0.05, "band": (0.95, 1.05)},
           {"vtol": "real", "band": "pair", "damping": "pair", "max_impulses": "int"}, check=shaper_check,
           timeout=6.0, pool_limit=12),
+        E("design[um_si]", lambda **k: pc.design("um_si", mode(), **k), lambda: {"vtol": 0.05, "band": (0.95, 1.05)},
+          {"vtol": "real", "band": "pair"}, check=shaper_check, timeout=6.0, pool_limit=12),
         E("design[um_zvd]", lambda **k: pc.design("um_zvd", pc.Mode(10.0, k.pop("zeta"))), lambda: {"zeta": 0.1},
           {"zeta": "real"}, check=shaper_check),
         E("shortest_shaper", lambda **k: pc.shortest_shaper(**k),

@@ -310,3 +310,20 @@ def test_readme_example():
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS)
     runner.run(test)
     assert runner.failures == 0 and runner.tries >= 6
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.05])
+def test_um_si_meets_the_band_and_beats_um_zvd_and_positive_si(zeta):
+    m = Mode(2 * math.pi, zeta)
+    for band in [(1.0, 1.0), (0.95, 1.05), (0.9, 1.1), (0.85, 1.15)]:
+        S = design("um_si", m, vtol=0.05, band=band)
+        assert S.optimality.feasible and worst_v(S, [m], band) <= 0.05 * (1 + 1e-6)
+        assert np.all(np.abs(S.amplitudes) == 1.0) and np.all(np.isin(np.cumsum(S.amplitudes), [0.0, 1.0]))
+        assert S.duration < design("si", m, vtol=0.05, band=band).duration  # negative impulses: faster
+        zvd = design("um_zvd", m)
+        assert S.duration <= zvd.duration * (1 + 1e-9)
+    # zero width: shorter than UM-ZV (it may leave 5 % at the model frequency)
+    assert design("um_si", m, vtol=0.05, band=(1, 1)).duration < design("um_zv", m).duration
+    # too wide for 5 impulses +-1: a result that says so
+    S = design("um_si", m, vtol=0.05, band=(0.7, 1.3))
+    assert not S.optimality.feasible and S.optimality.status == "infeasible"

@@ -23,13 +23,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import root
+from scipy.optimize import minimize, root
 
 from ..modes import Mode
+from .. import _validate as v
 from .base import check_decay, check_mode, check_resolution
-from .optimal import OptimalShaper, Optimality
+from .optimal import ActiveConstraint, OptimalShaper, Optimality
+from .optimal_solver import _peaks, _point_arrays, _Problem, _qs
 
-__all__ = ["um_zv_impulses", "um_zvd_impulses", "um_shaper", "UM_FIT", "um_fit_times"]
+__all__ = ["um_zv_impulses", "um_zvd_impulses", "um_shaper", "um_si_shaper", "UM_FIT", "um_fit_times"]
 
 #: Singhose, Seering & Singer (1997) curve fits ``t_i / T_n = M0 + M1 z + M2 z^2 + M3 z^3``
 #: (``T_n = 2 pi / omega``, undamped period), as printed in their Table (UM-ZV, UM-ZVD).
@@ -167,3 +169,88 @@ def um_shaper(mode: Mode, kind: str) -> OptimalShaper:
     return OptimalShaper(t, a, name=kind, modes=(mode,),
                          params={"amplitude_bound": float(np.abs(run).max()), "l1_norm": float(np.abs(a).sum())},
                          optimality=opt)
+
+
+def um_si_shaper(mode: Mode, vtol: float = 0.05, band: tuple[float, float] = (0.9, 1.1)) -> OptimalShaper:
+    """``design("um_si", mode, vtol=, band=)``: the shortest unity-magnitude shaper (3 or 5 impulses +-1)
+    keeping ``V <= vtol`` over the band of frequency ratios (the SI variant of Singhose et al. 1997).
+
+    The times are polished by SLSQP with the amplitudes fixed, from UM-ZV (3 impulses) and UM-ZVD
+    (5 impulses), on frequencies exchanged until a dense grid is within ``vtol``; the shorter feasible
+    one is returned.  A band too wide for 5 unity-magnitude impulses is a result that says so
+    (``optimality.feasible`` False: UM-ZVD, with its worst vibration on the band).
+
+    Examples
+    --------
+    >>> S = um_si_shaper(Mode(2 * math.pi, 0.0), 0.05, (1.0, 1.0))   # one frequency, 5 % left there
+    >>> S.optimality.feasible, S.n_impulses, S.duration < 1 / 3        # shorter than UM-ZV's T/3
+    (True, 3, True)
+    """
+    check_mode(mode)
+    vtol = v.real_in_range(vtol, "vtol", 1e-6, 1.0, hi_open=True)
+    lo, hi = v.ordered_pair(band, "band", 0.0, 1000.0, lo_open=True)
+    prob = _Problem((mode,), ((lo, hi),), ((mode.zeta, mode.zeta),), vtol, mode.omega * hi)
+    best = None
+    for kind in ("um_zv", "um_zvd"):
+        t0, amps = _um(mode, 0 if kind == "um_zv" else 1, kind)
+        u = t0 * prob.scale
+        nu, ze, _, _ = prob.points(6, u[-1], 11, 1)
+        q, sig = _qs(nu, ze)
+        for _ in range(6):
+            u = _times_shortest(u, amps, q, sig, vtol)
+            pk = _peaks(prob, u, amps, vtol * 0.9)
+            if max(p[3] for p in pk) <= vtol * (1 + 1e-6) and np.all(np.diff(u) > 0):
+                if best is None or u[-1] < best[0][-1]:
+                    best = (u, amps, pk)
+                break
+            qa, sa = _point_arrays(prob, [p for p in pk if p[3] > vtol * (1 - 1e-3)])
+            q, sig = np.concatenate([q, qa]), np.concatenate([sig, sa])
+    if best is None:
+        t0, amps = _um(mode, 1, "um_zvd")
+        u = t0 * prob.scale
+        pk = _peaks(prob, u, amps, vtol * 0.5)
+        best, ok, note = (u, amps, pk), False, "5 unity-magnitude impulses cannot keep V <= vtol on this band (local search)"
+    else:
+        ok, note = True, "impulses +-1: running sum in [0, 1]"
+    u, amps, pk = best
+    t = u / prob.scale
+    worst = max(p[3] for p in pk)
+    active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= vtol * (1 - 1e-5))
+    opt = Optimality(ok, "feasible" if ok else "infeasible", vtol, worst, float(t[-1]), 0.0, int(t.size), active,
+                     None, note)
+    return OptimalShaper(t, amps, name="um_si", modes=(mode,),
+                         params={"vtol": vtol, "band": (lo, hi), "amplitude_bound": 1.0,
+                                 "l1_norm": float(np.abs(amps).sum())}, optimality=opt)
+
+
+def _times_shortest(u0: np.ndarray, amps: np.ndarray, q: np.ndarray, sig: np.ndarray, vtol: float) -> np.ndarray:
+    """SLSQP on the times (first at 0) of fixed amplitudes: min t_n with ``V_j <= vtol (1 - 1e-7)``."""
+    n = u0.size
+    target = vtol * (1 - 1e-7)
+
+    def parts(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        u = np.concatenate([[0.0], x])
+        with np.errstate(over="ignore", invalid="ignore"):
+            W = np.exp(np.multiply.outer(q, u) - sig[:, None] * u[-1])
+            z = W @ amps
+            dz = q[:, None] * W * amps[None, :]
+            dz[:, -1] -= sig * z
+        V = np.abs(z)
+        g = (np.conj(z)[:, None] * dz[:, 1:]).real / np.maximum(V, 1e-300)[:, None]
+        return V, g
+
+    D = np.eye(n - 1) - np.eye(n - 1, k=-1)
+    grad = np.zeros(n - 1)
+    grad[-1] = 1.0
+    cons = [{"type": "ineq", "fun": lambda x: 1.0 - parts(x)[0] / target, "jac": lambda x: -parts(x)[1] / target},
+            {"type": "ineq", "fun": lambda x: D @ x, "jac": lambda x: D}]
+    best = None
+    for shrink in (1.0, 0.99):
+        res = minimize(lambda x: x[-1], u0[1:] * shrink, jac=lambda x: grad, method="SLSQP", constraints=cons,
+                       bounds=[(0, None)] * (n - 1), options={"maxiter": 150, "ftol": 1e-14})
+        ok = res.success and np.min(1.0 - parts(res.x)[0] / target) >= -1e-6
+        if ok and (best is None or res.x[-1] < best[-1]):
+            best = res.x
+        if ok and res.x[-1] < u0[-1] * (1 - 1e-6):
+            break
+    return np.concatenate([[0.0], best if best is not None else res.x])

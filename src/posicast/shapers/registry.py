@@ -15,7 +15,7 @@ from .base import _T_MAX, DistributedPart, Kernel, Shaper, check_resolution
 from .distributed import _dzv as _dzv_weights
 from .distributed import distributed_zv_part, notch_continuous
 from .ei import ei_exact, ei_fit, ei_multi_hump
-from .negative import um_shaper
+from .negative import um_shaper, um_si_shaper
 from .optimal import si_shaper
 
 __all__ = ["design", "KINDS", "ZERO_VIBRATION_KINDS"]
@@ -142,6 +142,8 @@ KINDS: dict[str, _Kind] = {
     "um_zv": _Kind(lambda m: um_shaper(m, "um_zv"), {}, "unity-magnitude ZV, impulses 1, -1, 1 (Singhose 1997)", False),
     "um_zvd": _Kind(lambda m: um_shaper(m, "um_zvd"), {}, "unity-magnitude ZVD, 5 impulses +-1 (Singhose 1997)",
                     False),
+    "um_si": _Kind(um_si_shaper, {"vtol": 0.05, "band": (0.9, 1.1)},
+                   "unity-magnitude SI: shortest 3 or 5 impulses +-1 with V <= vtol over a band", False),
 }
 
 ZERO_VIBRATION_KINDS = tuple(k for k, d in KINDS.items() if d.zero_vibration)
@@ -163,7 +165,7 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     ----------
     kind : str
         One of ``zv, zvd, zvdd, zvddd, zvdk, ei, ei2, ei3, mzv, mis_zv, mis_zvd,
-        dzv, dezv, dtzv, dczv, dtazv, notch, si, um_zv, um_zvd`` (see ``posicast.KINDS``).
+        dzv, dezv, dtzv, dczv, dtazv, notch, si, um_zv, um_zvd, um_si`` (see ``posicast.KINDS``).
     mode : Mode or (omega, zeta)
         The mode to cancel (``si``: also a sequence of Modes).
     **params
@@ -176,7 +178,8 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
         ``pi / omega``); ``vtol``, ``band`` (ratios ``(low, high)``, default
         ``(0.9, 1.1)``), ``damping`` (``(low, high)``, default the mode's) and
         ``max_impulses`` (si: see :func:`~posicast.shapers.optimal.shortest_shaper`;
-        the result carries ``.optimality``).  Impulse counts are limited to
+        the result carries ``.optimality``); ``vtol``, ``band`` (um_si, impulses +-1:
+        :func:`~posicast.shapers.negative.um_si_shaper`).  Impulse counts are limited to
         :data:`~posicast.shapers.base.MAX_IMPULSES` (``k <= 99998``, ``n <= 100000``,
         ``n * m <= 100000``); the EI solvers need ``vtol >= 1e-6``.
 
