@@ -59,7 +59,8 @@ def _figure(report: Report, mode: Mode, si: dict) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.6))
     for label, S in [("SI 0.8-1.2", si[(0.8, 1.2)]), ("SI 0.9-1.1", si[(0.9, 1.1)]),
                      ("EI 5 %", design("ei", mode, vtol=0.05)), ("ZVD", design("zvd", mode)),
-                     ("UM-ZV", design("um_zv", mode))]:
+                     ("UM-ZV", design("um_zv", mode)),
+                     ("UM-SI 0.9-1.1 (+-1)", design("um_si", mode, vtol=0.05, band=(0.9, 1.1)))]:
         ax.plot(r, 100 * residual_vibration(S, r * mode.omega, mode.zeta),
                 label=f"{label} ({S.duration / mode.damped_period:.3f} T_d)")
     ax.axhline(5.0, color="k", lw=0.8, ls=":")
@@ -67,7 +68,8 @@ def _figure(report: Report, mode: Mode, si: dict) -> None:
     ax.set_ylabel("residual vibration [%]")
     ax.set_ylim(0, 40)
     ax.legend(fontsize=8)
-    report.figure(fig, "optimal_si", "Specified-insensitivity shapers against EI, ZVD and UM-ZV (zeta = 0.05).")
+    report.figure(fig, "optimal_si", "Specified-insensitivity shapers against EI, ZVD, UM-ZV and the unity-magnitude "
+                  "SI shaper (impulses +-1) for the same +-10 % band (zeta = 0.05).")
 
 
 def _um_table(report: Report) -> None:
