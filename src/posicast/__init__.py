@@ -18,7 +18,8 @@ Systems (:mod:`posicast.core`)
     is in *ascending* powers, ``coeffs[i, k]`` multiplying ``s^k exp(-s delays[i])``
     (``QuasiPolynomial(coeffs, delays)``, a ``(coeffs, delays)`` pair, ``.coeffs``).
 Shapers (:mod:`posicast.shapers`)
-    ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``.
+    ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``,
+    ``shortest_shaper``, ``OptimalShaper``, ``Optimality`` (issue #17: SI, UM and limited-impulse shapers).
 Spectra (:mod:`posicast.spectra`) -- each verb is also a method of every object
     ``roots``, ``poles``, ``zeros``, ``stability``, ``spectral_abscissa``, ``rightmost``,
     ``difference_spectrum``, ``Roots``.
@@ -58,6 +59,7 @@ from .identification import Calibration, Identification, Interval, NoModeFound, 
 from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
 from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
+from .shapers import Optimality, OptimalShaper, shortest_shaper
 from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
@@ -77,6 +79,7 @@ __all__ = [
     "QuasiPolynomial", "TransferFunction", "as_transfer", "delay", "Mode",
     # shapers
     "design", "KINDS", "ZERO_VIBRATION_KINDS", "Shaper", "Kernel", "DistributedPart",
+    "shortest_shaper", "OptimalShaper", "Optimality",
     # spectra
     "roots", "poles", "zeros", "stability", "spectral_abscissa", "rightmost", "difference_spectrum", "Roots",
     # loops

@@ -360,3 +360,19 @@ def renamed_keywords(**old_to_new: str) -> Any:
         return inner
 
     return wrap
+
+
+# --- issue #17
+def ordered_pair(value: Any, name: str, lo: float, hi: float, *, lo_open: bool = False,
+                 hi_open: bool = False) -> tuple[float, float]:
+    """A ``(low, high)`` pair of reals with ``low <= high``, both in the range ``[lo, hi]`` (ends open as asked).
+
+    >>> ordered_pair((0.9, 1.1), "band", 0.0, 1e3, lo_open=True)
+    (0.9, 1.1)
+    """
+    a, b = pair(value, name)
+    a = real_in_range(a, f"{name}[0]", lo, hi, lo_open=lo_open, hi_open=hi_open)
+    b = real_in_range(b, f"{name}[1]", lo, hi, lo_open=lo_open, hi_open=hi_open)
+    if a > b:
+        raise ValueError(f"{name} must be a (low, high) pair with low <= high, got ({a:g}, {b:g})")
+    return a, b

@@ -25,6 +25,7 @@ from posicast.spectra import roots
 
 from .html import Report
 from .identification_report import identification_section
+from .optimal_report import optimal_section
 from .seed001_report import seed001_section
 from .seed003_report import seed003_section
 
@@ -323,6 +324,7 @@ def build_report(out: str | Path) -> Path:
     seed001_section(report)
     seed003_section(report)
     identification_section(report)
+    optimal_section(report)
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
     return report.write()
 

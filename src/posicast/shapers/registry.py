@@ -15,6 +15,8 @@ from .base import _T_MAX, DistributedPart, Kernel, Shaper, check_resolution
 from .distributed import _dzv as _dzv_weights
 from .distributed import distributed_zv_part, notch_continuous
 from .ei import ei_exact, ei_fit, ei_multi_hump
+from .negative import um_shaper, um_si_shaper
+from .optimal import si_shaper
 
 __all__ = ["design", "KINDS", "ZERO_VIBRATION_KINDS"]
 
@@ -25,6 +27,9 @@ class _Kind:
     params: dict[str, Any]  # name -> default
     summary: str
     zero_vibration: bool
+    multi_mode: bool = False  # takes a sequence of modes too
+    # zero_vibration: S(p) = 0 with positive impulses for every zeta < 1 (UM shapers place the zero
+    # too, with negative impulses and up to zeta ~ 0.9: they are not listed in ZERO_VIBRATION_KINDS)
 
 
 def _shortest_interval(times: np.ndarray) -> float:
@@ -131,6 +136,14 @@ KINDS: dict[str, _Kind] = {
     "dczv": _Kind(_dist("cosine", "dczv"), {"T": None}, "A + (1-A) cosine delay (seed 001 G3)", True),
     "dtazv": _Kind(_dist("decreasing", "dtazv"), {"T": None}, "A + (1-A) decreasing-ramp delay (seed 001 G4)", True),
     "notch": _Kind(_notch, {}, "IIR notch (seed 001 eq. 13)", True),
+    # issue #17: optimal and unity-magnitude shapers (shapers/optimal.py, shapers/negative.py)
+    "si": _Kind(si_shaper, {"vtol": 0.05, "band": (0.9, 1.1), "damping": None, "max_impulses": None},
+                "specified insensitivity: shortest with V <= vtol over a band (Singhose 1996)", False, True),
+    "um_zv": _Kind(lambda m: um_shaper(m, "um_zv"), {}, "unity-magnitude ZV, impulses 1, -1, 1 (Singhose 1997)", False),
+    "um_zvd": _Kind(lambda m: um_shaper(m, "um_zvd"), {}, "unity-magnitude ZVD, 5 impulses +-1 (Singhose 1997)",
+                    False),
+    "um_si": _Kind(um_si_shaper, {"vtol": 0.05, "band": (0.9, 1.1)},
+                   "unity-magnitude SI: shortest 3 or 5 impulses +-1 with V <= vtol over a band", False),
 }
 
 ZERO_VIBRATION_KINDS = tuple(k for k, d in KINDS.items() if d.zero_vibration)
@@ -152,9 +165,9 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     ----------
     kind : str
         One of ``zv, zvd, zvdd, zvddd, zvdk, ei, ei2, ei3, mzv, mis_zv, mis_zvd,
-        dzv, dezv, dtzv, dczv, dtazv, notch`` (see ``posicast.KINDS``).
+        dzv, dezv, dtzv, dczv, dtazv, notch, si, um_zv, um_zvd, um_si`` (see ``posicast.KINDS``).
     mode : Mode or (omega, zeta)
-        The mode to cancel.
+        The mode to cancel (``si``: also a sequence of Modes).
     **params
         ``k`` (zvdk, integer >= 0, default 1); ``vtol`` (ei/ei2/ei3, in (0, 1),
         default 0.05); ``method`` (ei: ``"exact"`` (hump of height vtol exactly at the
@@ -162,7 +175,11 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
         (t3 = T_d, ``ei_exact(..., definition="singhose")``) or ``"fit"``); ``n`` (mis_zv,
         integer >= 2, default 3); ``n``, ``m`` (mis_zvd, integers >= 2, default
         2 and 3); ``T`` (dezv/dtzv/dczv/dtazv, kernel length > 0, default
-        ``pi / omega``).  Impulse counts are limited to
+        ``pi / omega``); ``vtol``, ``band`` (ratios ``(low, high)``, default
+        ``(0.9, 1.1)``), ``damping`` (``(low, high)``, default the mode's) and
+        ``max_impulses`` (si: see :func:`~posicast.shapers.optimal.shortest_shaper`;
+        the result carries ``.optimality``); ``vtol``, ``band`` (um_si, impulses +-1:
+        :func:`~posicast.shapers.negative.um_si_shaper`).  Impulse counts are limited to
         :data:`~posicast.shapers.base.MAX_IMPULSES` (``k <= 99998``, ``n <= 100000``,
         ``n * m <= 100000``); the EI solvers need ``vtol >= 1e-6``.
 
@@ -195,7 +212,8 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     if key not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
     spec = KINDS[key]
-    m = _as_mode(mode)
+    several = spec.multi_mode and isinstance(mode, (list, tuple)) and bool(mode) and isinstance(mode[0], Mode)
+    m = tuple(mode) if several else _as_mode(mode)
     unknown = set(params) - set(spec.params)
     if unknown:
         allowed = ", ".join(spec.params) or "none"
