@@ -356,7 +356,7 @@ def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root
 
 
 def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
-                upper: np.ndarray, rounds: int = 4) -> np.ndarray:
+                upper: np.ndarray, rounds: int = 4, where: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Exact interval ends: the extremum over frequency of each end's root, refined between its
     column's neighbours (vectorised over all ends).
 
@@ -366,11 +366,13 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     call for all ends) and keeps the two intervals around the best point, so the
     bracket shrinks 4x per round; the grid value stands where nothing better is
     found.  (A parabola through three grid points, used before, can overshoot a
-    sharp minimum and make the region smaller than it is.)
+    sharp minimum and make the region smaller than it is.)  With ``where``, also
+    the frequency of each end's extremum (NaN for the ends not polished).
     """
     idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
+    omega = np.full(values.shape, np.nan)
     if not idx:
-        return values
+        return (values, omega) if where else values
     k = np.array(idx)
     col = np.array([ends[i][0] for i in idx])
     ci = np.array([ends[i][1] for i in idx])
@@ -381,6 +383,7 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     hi = cols.omega[col + 1].astype(float)
     best = sign * values[k]
     best = np.where(np.isfinite(best), best, _INF)
+    best_w = cols.omega[col].astype(float)
     t = np.linspace(0.0, 1.0, 9)
     for _ in range(rounds):
         w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
@@ -397,12 +400,16 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
         f = np.where(np.isfinite(f), f, _INF)
         j = np.argmin(f, axis=1)
         fj = f[np.arange(f.shape[0]), j]
-        best = np.minimum(best, fj)
         wj = w[np.arange(w.shape[0]), j]
+        best_w = np.where(fj < best, wj, best_w)
+        best = np.minimum(best, fj)
         step = (hi - lo) / 8.0
         lo, hi = np.maximum(lo, wj - step), np.minimum(hi, wj + step)
     out = values.copy()
     out[k] = np.where(np.isfinite(best), sign * best, values[k])
+    if where:
+        omega[k] = best_w
+        return out, omega
     return out
 
 
