@@ -246,9 +246,10 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
     out: list[LineData | None] = [None] * xs.size
     y_top = min(max(abs(problem.y_window[0]), abs(problem.y_window[1])), problem.y_valid)
     mag = np.abs(xs)
-    top = float(mag.max(initial=0.0))
-    decade = np.floor(np.log10(np.maximum(mag, 1e-300) / max(top, 1e-300)))
-    decade = np.where(mag > 0, decade, decade.min(initial=0.0))
+    with np.errstate(divide="ignore"):
+        decade = np.floor(np.log10(mag))  # -inf at x = 0: those lines join the lowest decade
+    finite = np.isfinite(decade)
+    decade = np.where(finite, decade, float(decade[finite].min()) if finite.any() else 0.0)
     for d in np.unique(decade):
         group = np.flatnonzero(decade == d)
         sub, sel = thin_columns(cols, float(mag[group].max()), y_top)
