@@ -14,6 +14,13 @@ be at least as large: it is the exact supremum).
 Targets (issue #6): all 12 designs in < 5 s; every misclassified point
 explained.
 
+Issue #15 (part A): the same crane with a **lumped** shaper in the loop (ZV, ZVD,
+EI in the control-action and the inverse-shaper structure), each design timed
+alone (median of several runs, CPU time) next to the DeZV design of the same
+structure; goals: every design (the 12 above and these 6) <= 2 s, and each
+lumped design <= 2x its DeZV design.  (The inverse ZVD and EI loops are neutral
+for every PD and are refused at once, without a scan.)
+
 Usage: python benchmarks/bench_tune.py [--quick]
 """
 
@@ -25,8 +32,41 @@ import sys
 import time
 
 from _harness import machine_info, md_table, print_machine_info, timed
+from posicast.cases import ALL
+from posicast.shapers import design
 from posicast.testing import sample_check
-from posicast_reports.seed001 import table1
+from posicast.tune import tune_pd
+from posicast_reports.seed001 import STRUCTURES, table1
+
+LUMPED = ("zv", "zvd", "ei")
+
+
+def _cpu_median(fn, runs: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(runs):
+        t0 = time.process_time()
+        out = fn()
+        times.append(time.process_time() - t0)
+    return statistics.median(times), out
+
+
+def lumped_rows(runs: int) -> tuple[list[list[str]], bool]:
+    """Each lumped-shaper design and the DeZV design of its structure: CPU medians, ratio and goals."""
+    crane = ALL["gantry_crane"]
+    rows, ok = [], True
+    for structure, ms, _ in STRUCTURES:
+        base, _r = _cpu_median(lambda: tune_pd(crane.G, design("dezv", crane.mode), structure, ms=ms, F=crane.F),
+                               runs)
+        rows.append([structure.replace("_", " "), "DeZV", f"{base:.2f}", "1.00", f"{_r.kp:.6g}", "-"])
+        for kind in LUMPED:
+            S = design(kind, crane.mode)
+            t, r = _cpu_median(lambda: tune_pd(crane.G, S, structure, ms=ms, F=crane.F), runs)
+            met = t <= 2.0 and t <= 2.0 * base
+            ok &= met
+            kp = "refused (neutral)" if r.kp is None else f"{r.kp:.6g}"
+            rows.append([structure.replace("_", " "), kind.upper(), f"{t:.2f}", f"{t / base:.2f}", kp,
+                         "met" if met else "MISSED"])
+    return rows, ok
 
 
 def main() -> int:
@@ -69,8 +109,17 @@ def main() -> int:
     per_design = statistics.median(float(t[5]) for t in table)
     print(f"\nbrute-force checks: {brute_total:.0f} s in all ({n_points} points each); "
           f"designs: {timing.median:.2f} s in all (median per design {per_design:.2f} s)")
+    slow = [t[0] + ", " + t[1] for t in table if float(t[5]) > 2.0]
+    print(f"issue #15: every Table 1 design <= 2 s: {'met' if not slow else 'MISSED: ' + '; '.join(slow)}")
     if failures:
         print(f"{failures} designs FAILED the brute-force check")
+
+    lruns = 2 if args.quick else 5
+    print(f"\nissue #15: lumped shapers in the loop, each design alone, median CPU time of {lruns} runs\n")
+    lrows, lok = lumped_rows(lruns)
+    print(md_table(["structure", "shaper", "design CPU [s]", "ratio to DeZV", "Kp", "goal (<= 2 s and <= 2x DeZV)"],
+                   lrows))
+    print(f"\nlumped designs: all goals {'met' if lok else 'MISSED'}")
     return 1 if failures else 0
 
 

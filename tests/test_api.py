@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import subprocess
+import sys
 import warnings
 
 import numpy as np
@@ -139,6 +141,28 @@ def test_no_function_hides_a_module(name):
 def test_every_public_name_resolves():
     for name in posicast.__all__:
         assert getattr(posicast, name) is not None
+    assert set(posicast.__all__) <= set(dir(posicast))
+
+
+def test_lazy_table_and_type_checking_imports_agree():
+    """posicast/__init__.py loads its names lazily (issue #15); its TYPE_CHECKING imports, read by type
+    checkers, and ``__all__`` must name exactly the names of its lazy table."""
+    import ast
+    from pathlib import Path
+
+    tree = ast.parse(Path(posicast.__file__).read_text(encoding="utf-8"))
+    block = next(n for n in tree.body if isinstance(n, ast.If) and getattr(n.test, "id", "") == "TYPE_CHECKING")
+    typed = {a.asname or a.name for n in block.body if isinstance(n, ast.ImportFrom) for a in n.names}
+    assert typed == set(posicast._PUBLIC) == set(posicast.__all__)
+    assert len(posicast.__all__) == len(set(posicast.__all__))
+
+
+def test_import_posicast_loads_no_heavy_module():
+    """``import posicast`` loads no submodule and neither scipy nor matplotlib (issue #15: start-up)."""
+    code = ("import sys, posicast; heavy = [m for m in ('scipy', 'matplotlib', 'posicast.tune', 'posicast.spectra') "
+            "if m in sys.modules]; print(heavy)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
 
 
 def test_every_method_takes_its_functions_arguments():

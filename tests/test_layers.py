@@ -8,7 +8,7 @@ posicast module may import it.
 
 Layers (low to high):
 
-0. ``_validate``: argument checks, imports nothing of posicast.
+0. ``_validate`` (argument checks) and ``_lazy`` (lazy public names): import nothing of posicast.
 1. ``core`` (exact delay transfer functions) and ``modes`` (the Mode value type).
 2. ``shapers`` and ``spectra``.
 3. ``loops`` and ``cases``: the seeds' plants are loop data (transfer functions and
@@ -22,7 +22,9 @@ Layers (low to high):
 6. ``cli``, ``__main__`` and the package's ``__init__`` (the façade that re-exports
    the public names: nothing inside posicast may import ``posicast`` itself).
 
-The test fails on any upward import, naming file and line.  Imports under
+The test fails on any upward import, naming file and line.  A lazy name table
+(``__getattr__, __dir__, __all__ = lazy_names(__name__, TABLE)``, :mod:`posicast._lazy`) is read as
+the imports it stands for: each ``"name": ".module"`` entry imports that module.  Imports under
 ``if TYPE_CHECKING:`` are annotations, never executed, and are not dependencies.
 Two explicit lists soften the rule, each entry with its reason: deprecated aliases
 (a module ``__getattr__`` that returns a moved name behind a FutureWarning) and the
@@ -41,13 +43,13 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 PKG = SRC / "posicast"
 
 LAYERS: dict[str, int] = {
-    "_validate": 0,
+    "_validate": 0, "_lazy": 0,
     "core": 1, "modes": 1,
     "shapers": 2, "spectra": 2,
     "loops": 3, "cases": 3,
     "analysis": 4, "simulation": 4, "tune": 4, "identification": 4, "firmware": 4, "qft": 4,
     "io": 5, "testing": 5,
-    "cli": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
+    "cli": 6, "commands": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
 }
 
 # Deprecated aliases: (file, imported module) allowed upward inside the module-level __getattr__ only.
@@ -99,12 +101,42 @@ def _dynamic_target(call: ast.Call) -> str | None:
     return None
 
 
+def _string_tables(tree: ast.Module) -> dict[str, ast.Dict]:
+    """Module-level ``NAME = {...}`` / ``NAME: T = {...}`` dictionaries whose values are all strings."""
+    out = {}
+    for node in tree.body:
+        target = node.targets[0] if isinstance(node, ast.Assign) and len(node.targets) == 1 else \
+            node.target if isinstance(node, ast.AnnAssign) else None
+        value = node.value if isinstance(node, (ast.Assign, ast.AnnAssign)) else None
+        if isinstance(target, ast.Name) and isinstance(value, ast.Dict) and all(
+                isinstance(v, ast.Constant) and isinstance(v.value, str) for v in value.values):
+            out[target.id] = value
+    return out
+
+
+def _lazy_table(call: ast.Call, tables: dict[str, ast.Dict]) -> ast.Dict | None:
+    """The name table of a ``lazy_names(package, TABLE)`` call (a dict literal or a module-level dict)."""
+    f = call.func
+    name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+    if name != "lazy_names" or len(call.args) < 2:
+        return None
+    arg = call.args[1]
+    return arg if isinstance(arg, ast.Dict) else tables.get(arg.id) if isinstance(arg, ast.Name) else None
+
+
 def imports_of(path: Path) -> list[tuple[int, str, str | None]]:
     """``(line, absolute module, outermost enclosing function or method, or None)`` for every import in ``path``."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
     name = _module_name(path)
     package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     out: list[tuple[int, str, str | None]] = []
+    tables = _string_tables(tree)
+
+    def absolute(module: str) -> str:
+        level = len(module) - len(module.lstrip("."))
+        if not level:
+            return module
+        return ".".join(package[: len(package) - level + 1] + ([module[level:]] if module[level:] else []))
 
     def visit(node: ast.AST, func: str | None) -> None:
         for child in ast.iter_child_nodes(node):
@@ -116,6 +148,8 @@ def imports_of(path: Path) -> list[tuple[int, str, str | None]]:
                 inner = child.name
             if isinstance(child, ast.Call) and _dynamic_target(child):  # importlib.import_module("posicast.x")
                 out.append((child.lineno, _dynamic_target(child), func))
+            if isinstance(child, ast.Call) and _lazy_table(child, tables) is not None:  # lazy_names(pkg, TABLE)
+                out.extend((child.lineno, absolute(v.value), func) for v in _lazy_table(child, tables).values)
             if isinstance(child, ast.Import):
                 out.extend((child.lineno, a.name, func) for a in child.names)
             elif isinstance(child, ast.ImportFrom):
@@ -191,6 +225,9 @@ def test_reports_package_is_outside_posicast():
     ("from .. import testing\n", "imports posicast.testing (layer 5)"),
     ("import importlib\ndef f():\n    return importlib.import_module('posicast.tune')\n",
      "imports posicast.tune (layer 4)"),  # a dynamic import is an import too
+    ("from .._lazy import lazy_names\n_T = {'tune_pd': '..tune', 'Shaper': '.base'}\n"
+     "__getattr__, __dir__, __all__ = lazy_names(__name__, _T)\n",
+     "imports posicast.tune (layer 4)"),  # a lazy name table is read as its imports
 ])
 def test_a_planted_violation_is_found(tmp_path, monkeypatch, snippet, expected):
     """The check sees upward imports at module and function level (planted in a copy of a layer-2 module)."""

@@ -18,58 +18,24 @@ output path is checked before any computation, the file is written only after
 everything else succeeded, atomically (a temporary file in the same directory,
 renamed), and an error leaves no file behind.
 
-The command line is posicast's top layer and imports what it runs at module level.
-matplotlib alone is loaded lazily, through :func:`_pyplot`, the one place here that
-imports it: only the subcommands that draw pay for it.
+The command line is posicast's top layer.  It builds the parser without importing any
+computation: each subcommand lives in a module of :mod:`posicast.commands` (``run(args)``),
+imported by :func:`_run` through the table ``_COMMANDS`` when that subcommand runs, so
+``posicast --help`` answers in a fraction of a second (issue #15).  To add a subcommand:
+its parser lines in :func:`_build_parser`, its module in :mod:`posicast.commands`, one
+line in ``_COMMANDS``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import math
+import importlib
 import os
 import sys
-import tempfile
-import time
 import traceback
-from pathlib import Path
-from types import ModuleType
-from typing import TYPE_CHECKING, Any, Callable, Sequence
-
-from . import _validate as v
-from .analysis import insensitivity, sensitivity_plot
-from .cases import ALL as CASES
-from .core.transfer import TransferFunction, as_transfer, delay
-from .identification import NoModeFound, calibrate, load_csv
-from .identification.calibration import identify_resonances
-from .identification.estimators import identify
-from .identification.plots import calibration_plot
-from .identification.resonance import resonance_data
-from .identification.significance import MAX_MODES
-from .modes import Mode
-from .qft import PlantSet, qft_design
-from .shapers.base import Shaper
-from .shapers import registry  # registry.design at call time: the suite patches it to test status 70
-from .spectra.rootfinder import RootFindingError
-from .tune import TuningResult, tune_pd, tune_pi
-from .tune.constraints import sensitivity_constraint
-from .tune.family import pd_family
-
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
+from typing import Any, Sequence
 
 __all__ = ["main"]
-
-
-def _pyplot() -> ModuleType:
-    """``matplotlib.pyplot`` on the file-only Agg backend, imported on first use (the CLI's one matplotlib import)."""
-    import matplotlib  # lazy: about half a second that only the drawing subcommands need
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 class _OneLineError(Exception):
@@ -182,363 +148,26 @@ def _build_parser() -> _Parser:
     return parser
 
 
-def _qft_cmd(args: argparse.Namespace) -> int:
-    """``posicast qft``: design G for the two-mass plant set; exit 1 when the spec is infeasible."""
-    plants = PlantSet.two_mass(v.real_in_range(args.uncertainty, "--uncertainty", 0.0, 100.0, hi_open=True))
-    sections = tuple(x.strip() for x in args.structure.split(",") if x.strip())
-    r = qft_design(plants, CASES["two_mass"].extras["F_m"], stability=args.stability, matching=args.matching,
-                   structure=sections)
-    sc = r.controller.to_scipy()
-    if args.json:
-        print(json.dumps({"feasible": r.feasible, "violated": list(r.violated), "margins": dict(r.margins),
-                          "high_frequency_gain": r.high_frequency_gain, "parameters": dict(r.parameters),
-                          "num": [float(x) for x in sc.num], "den": [float(x) for x in sc.den]}, indent=2))
-    else:
-        print(r.summary())
-        print("G num: " + " ".join(f"{x:.10g}" for x in sc.num))
-        print("G den: " + " ".join(f"{x:.10g}" for x in sc.den))
-    if args.plot:
-        _pyplot()
-        fig, _ = r.plot()
-        _save_atomic(fig, args.plot, "--plot")
-    return 0 if r.feasible else 1
-
-
-def _coeffs(text: str, name: str) -> list[float]:
-    try:
-        vals = [float(v) for v in text.replace(",", " ").split()]
-    except ValueError:
-        raise ValueError(f"{name} must be numbers separated by spaces, got {text!r}") from None
-    if not vals:
-        raise ValueError(f"{name} must not be empty")
-    return vals
-
-
-def _check_tune_options(args: argparse.Namespace) -> None:
-    """Every ``tune`` option that needs no design work, before any design work."""
-    sensitivity_constraint(args.ms)  # ms range (ValueError naming ms)
-    if args.derivative_filter is not None:
-        try:
-            pd_family(args.derivative_filter)  # 0 or a time constant in the tuner's range
-        except ValueError as exc:
-            raise ValueError(f"--derivative-filter: {exc}") from None
-    for g in ("kp", "ki", "kd"):
-        r = getattr(args, f"{g}_range")
-        if r is not None:
-            lo, hi = (v.real_in_range(x, f"--{g}-range", -1e12, 1e12) for x in r)
-            if not lo < hi:
-                raise ValueError(f"--{g}-range: {g}_range must have low < high, got ({lo:g}, {hi:g})")
-    if args.controller == "pd" and args.ki_range is not None:
-        raise ValueError("--ki-range does not apply to a pd controller")
-    if args.controller == "pi" and (args.kd_range is not None or args.derivative_filter is not None):
-        raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
-    v.nonnegative(args.delay, "--delay", " [s]")
-    if (args.omega is None) != (args.zeta is None):
-        raise ValueError("--omega and --zeta go together")
-
-
-def _tune_plant(args: argparse.Namespace) -> tuple[TransferFunction, TransferFunction | None, Mode | None]:
-    """``(G, F, mode)`` from ``--case`` or ``--num/--den`` (with ``--delay``); ``--omega/--zeta`` override the mode."""
-    F = None
-    mode = None
-    if args.case is not None:
-        v.choice(args.case, "--case", CASES)
-        if args.den is not None:
-            raise ValueError("--den goes with --num, not with --case")
-        case = CASES[args.case]
-        G, F, mode = case.G, case.F, case.mode
-    else:
-        if args.den is None:
-            raise ValueError("--den is required with --num")
-        G = as_transfer((_coeffs(args.num, "--num"), _coeffs(args.den, "--den")), "the plant --num/--den")
-    if args.delay != 0.0:
-        G = G * delay(args.delay)
-    if args.omega is not None:
-        mode = Mode(args.omega, args.zeta)
-    return G, F, mode
-
-
-def _tune_figures(args: argparse.Namespace, r: TuningResult) -> list[tuple[Figure, str, str]]:
-    """The requested figures of a tuning result as ``(figure, path, option)``, not yet written."""
-    figures: list[tuple[Figure, str, str]] = []
-    if (args.plot or args.nyquist) and not r.empty:
-        _pyplot()  # the Agg backend before the tuner draws
-        if args.plot:
-            figures.append((r.plot()[0], args.plot, "--plot"))
-        if args.nyquist and r.loop is not None:
-            figures.append((r.nyquist_plot()[0], args.nyquist, "--nyquist"))
-    return figures
-
-
-def _json_number(x: Any) -> float | None:
-    """JSON has no NaN or inf: null."""
-    return float(x) if x is not None and math.isfinite(x) else None
-
-
-def _tune_json(args: argparse.Namespace, r: TuningResult) -> dict[str, Any]:
-    ext = r.region.extent()
-    num = _json_number
-    return {
-        "controller": r.family.describe(), "architecture": r.architecture, "structure": r.architecture,
-        "shaper": args.shaper,
-        "empty": r.empty, "unbounded": r.unbounded,
-        "gains": None if r.gains is None else {k: r._gain(k) for k in ("kp", "ki", "kd")},
-        "ms": num(r.ms), "omega_ms": num(r.omega_ms), "stable": r.stable, "reason": r.reason,
-        "region": None if ext is None else {r.family.x: [num(ext[0]), num(ext[1])],
-                                            r.family.y: [num(ext[2]), num(ext[3])]},
-    }
-
-
-def _tune_cmd(args: argparse.Namespace) -> int:
-    _check_tune_options(args)  # every option first, before any design work
-    G, F, mode = _tune_plant(args)
-    S = None
-    if args.shaper is not None:
-        if mode is None:
-            raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
-        S = registry.design(args.shaper.lower(), mode)
-    if args.controller == "pd":
-        r = tune_pd(G, S, _architecture(args), ms=args.ms, derivative_filter=args.derivative_filter,
-                    kp_range=args.kp_range, kd_range=args.kd_range, F=F)
-    else:
-        r = tune_pi(G, S, _architecture(args), ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, F=F)
-    figures = _tune_figures(args, r)
-    for fig, out, opt in figures:  # everything computed: only now write
-        _save_atomic(fig, out, opt)
-    if args.json:
-        print(json.dumps(_tune_json(args, r), indent=2))
-    else:
-        print(r.summary())
-        for _, out, _opt in figures:
-            print(f"wrote {out}")
-    return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
-
-
-def _architecture(args: argparse.Namespace) -> str:
-    """``--architecture``, or the 0.1 spelling ``--structure`` (with a one-line warning on stderr)."""
-    if args.structure is not None:
-        if args.architecture is not None:
-            raise ValueError("give --architecture only (--structure is its old name)")
-        print("posicast: warning: --structure is now --architecture", file=sys.stderr)
-        return args.structure
-    return args.architecture or "control_action"
-
-
-def _n_modes(text: str) -> int | str:
-    if text == "auto":
-        return "auto"
-    try:
-        n = int(text)
-    except ValueError:
-        raise ValueError(f"--modes must be an integer in [1, {MAX_MODES}] or 'auto', got {text!r}") from None
-    if not 1 <= n <= MAX_MODES:
-        raise ValueError(f"--modes must be an integer in [1, {MAX_MODES}] or 'auto', got {n}")
-    return n
-
-
-def _progress(quiet: bool) -> Callable[[str], None]:
-    """Progress lines on stderr, once the work has taken more than a second (quick runs stay silent)."""
-    start = time.monotonic()
-
-    def say(msg: str) -> None:
-        elapsed = time.monotonic() - start
-        if not quiet and elapsed > 1.0:
-            print(f"[{elapsed:5.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    return say
-
-
-def _at_labels(text: str | None, n: int) -> list[dict[str, float]] | None:
-    if text is None:
-        return None
-    name, sep, values = text.partition("=")
-    if not sep or name.strip() not in ("mass", "z"):
-        raise ValueError(f"--at must be mass=V1,V2,... or z=V1,V2,..., got {text!r}")
-    try:
-        vals = [float(x) for x in values.split(",")]
-    except ValueError:
-        raise ValueError(f"--at values must be numbers separated by commas, got {values!r}") from None
-    if len(vals) != n:
-        raise ValueError(f"--at has {len(vals)} values for {n} files; give one per file")
-    return [{name.strip(): x} for x in vals]
-
-
-def _identify_cmd(args: argparse.Namespace) -> int:
-    try:
-        if args.command == "calibrate":
-            return _calibrate_cmd(args)
-        nm = _n_modes(args.modes)  # arguments before the file is read
-        ds = load_csv(args.file)
-        if args.input is not None:
-            if args.output is None:
-                raise ValueError("--output is required with --input")
-            r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm,
-                         method=args.method or "oe")
-        elif ds.kind in ("klipper_raw", "klipper_psd"):
-            if args.output is not None or args.method not in (None, "psd"):
-                raise ValueError("Klipper files are identified from their spectrum (method psd); "
-                                 "--output and other methods do not apply")
-            r = identify_resonances(resonance_data(ds, args.axis), nm)
-        elif args.output is not None:
-            method = args.method or "psd"
-            r = identify(ds.t, None, ds.column(args.output), n_modes=nm if method == "psd" else
-                         (1 if nm == "auto" else nm), method=method)
-        else:
-            raise ValueError("--output is required (or --input and --output) for CSV data")
-    except NoModeFound as exc:
-        print(f"posicast: {exc}", file=sys.stderr)
-        return 1
-    if args.json:
-        print(json.dumps({"method": r.method, "modes": [
-            {"omega": m.omega, "freq_hz": m.freq_hz, "zeta": m.zeta, "omega_95": list(iv.omega),
-             "zeta_95": list(iv.zeta)} for m, iv in zip(r.modes, r.intervals)],
-            "fit_percent": None if math.isnan(r.fit_percent) else r.fit_percent,
-            "whiteness_p": None if math.isnan(r.whiteness_p) else r.whiteness_p}, indent=2))
-    else:
-        print(r.summary())
-    return 0
-
-
-def _calibrate_cmd(args: argparse.Namespace) -> int:
-    if args.vtol is not None:
-        v.in_open_interval(args.vtol, "--vtol", 0.0, 1.0)
-    margin = v.real_in_range(args.margin, "--margin", 0.0, 0.5, hi_open=True)
-    if args.max_smoothing is not None:
-        v.positive(args.max_smoothing, "--max-smoothing")
-    firmware = [f.strip().lower() for f in args.firmware.split(",") if f.strip()]
-    labels = _at_labels(args.at, len(args.files))
-    cal = calibrate(args.files, firmware=firmware, axis=args.axis, at=labels, vtol=args.vtol, margin=margin,
-                    max_smoothing=args.max_smoothing, slack=args.slack, klipper_version=args.klipper_version,
-                    input=args.input,
-                    output=args.output, n_modes=_n_modes(args.modes), progress=_progress(args.quiet))
-    if args.plot:  # everything computed: only now write
-        _pyplot()  # the Agg backend before the figure is drawn
-        _save_atomic(calibration_plot(cal), args.plot)
-    if args.json:
-        print(json.dumps(cal.to_dict(), indent=2))
-    else:
-        print(cal.summary())
-        if args.plot:
-            print(f"wrote {args.plot}")
-    return 0
-
-
-def _output_path(value: Any, option: str) -> Path:
-    """Check an output figure path before any work (see the module docstring); returns a Path."""
-    return v.path_for_output(value, option)
-
+# Subcommand -> module of posicast.commands whose run(args) it calls (imported when it runs).
+_COMMANDS = {
+    "design": "shaping", "kinds": "shaping", "sensitivity": "shaping",
+    "identify": "identification", "calibrate": "identification",
+    "tune": "tuning",
+    "qft": "qft",
+}
 
 # Output-path options checked by _run before any subcommand starts work.
 _OUTPUT_OPTIONS = ("out", "plot", "nyquist")
 
 
-def _save_atomic(fig: Figure, out: str, option: str = "--plot") -> None:
-    """Write ``fig`` at exactly ``out``, atomically: a hidden temporary file in the same directory,
-    renamed onto ``out`` once complete.  On any failure nothing is left behind and the error
-    (a one-line ValueError) names ``option`` and the user's path, never the temporary file."""
-    try:
-        target = _output_path(out, option)
-        fmt = target.suffix.lower()[1:]
-        tmp = None
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-            with os.fdopen(fd, "wb") as fh:
-                fig.savefig(fh, format=fmt, dpi=110, bbox_inches="tight")
-            mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
-            os.umask(mask)
-            os.chmod(tmp, 0o666 & ~mask)
-            os.replace(tmp, target)
-            tmp = None
-        except (OSError, ValueError, RuntimeError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
-            raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
-        finally:
-            if tmp is not None and os.path.exists(tmp):
-                os.unlink(tmp)
-    finally:
-        _pyplot().close(fig)
-
-
-def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
-    accepted = registry.KINDS[kind].params if kind in registry.KINDS else {}
-    out = {}
-    for name in ("vtol", "k", "n", "m", "T", "method"):
-        val = getattr(args, name)
-        if val is None:
-            continue
-        if name not in accepted:
-            raise ValueError(f"--{name} does not apply to kind {kind!r}")
-        out[name] = val
-    return out
-
-
-def _mode(args: argparse.Namespace) -> Mode:
-    if args.omega is not None:
-        return Mode(args.omega, args.zeta)
-    return Mode.from_hz(args.freq_hz, args.zeta)
-
-
-def _print_shaper(S: Shaper) -> None:
-    m = S.modes[0]
-    print(f"{S.name} shaper for omega = {m.omega:.6g} rad/s ({m.freq_hz:.6g} Hz), zeta = {m.zeta:.6g}")
-    if S.params:
-        print("parameters: " + ", ".join(f"{k} = {v:.10g}" if isinstance(v, float) else f"{k} = {v}"
-                                         for k, v in S.params.items()))
-    print(f"{'t [s]':>14}  {'amplitude':>14}")
-    for t, a in zip(*S.impulses):
-        print(f"{t:14.10f}  {a:14.10f}")
-    for p in S.distributed:
-        shapes = " * ".join(f"{k.shape}(T={k.T:.10g})" for k in p.kernels)
-        print(f"distributed: weight {p.weight:.10f} on [{p.delay:.10f}, {p.end:.10f}] s, kernel {shapes}")
-    if S.continuous is not None:
-        print(f"IIR part: {S.continuous}")
-    dur = S.duration
-    print(f"duration: {dur:.10f} s" if math.isfinite(dur) else "duration: infinite (IIR)")
-
-
 def _run(argv: Sequence[str] | None) -> int:
     args = _build_parser().parse_args(argv)
+    figures = importlib.import_module("posicast.commands.figures")
     for opt in _OUTPUT_OPTIONS:  # every output path is checked before any work
         val = getattr(args, opt, None)
         if val is not None:
-            _output_path(val, f"--{opt}")
-    if args.command in ("identify", "calibrate"):
-        return _identify_cmd(args)
-    if args.command == "tune":
-        return _tune_cmd(args)
-    if args.command == "qft":
-        return _qft_cmd(args)
-    if args.command == "kinds":
-        for name, spec in registry.KINDS.items():
-            params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
-            print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
-        return 0
-    if args.command == "sensitivity":  # the tolerance before any design work
-        v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
-    mode = _mode(args)
-    if args.command == "design":
-        kind = args.kind.lower()
-        S = registry.design(kind, mode, **_params(args, kind))
-        if args.json:
-            print(json.dumps(S.to_dict(), indent=2))
-        else:
-            _print_shaper(S)
-        return 0
-    # sensitivity: design, analyse, draw; write last
-    _pyplot()  # the Agg backend before sensitivity_plot draws
-    shapers = [registry.design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
-    ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
-    lines = []
-    for S in shapers:
-        ins = insensitivity(S, args.tol, reference=ref)
-        lines.append(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
-    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
-    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
-    _save_atomic(fig, args.out, "--out")
-    for line in lines:
-        print(line)
-    print(f"wrote {args.out}")
-    return 0
+            figures.output_path(val, f"--{opt}")
+    return importlib.import_module(f"posicast.commands.{_COMMANDS[args.command]}").run(args)
 
 
 _EX_SOFTWARE = 70  # sysexits.h: an internal software error
@@ -555,6 +184,13 @@ def _origin(exc: BaseException) -> str:
     return f"{os.path.basename(frames[-1].filename)}:{frames[-1].lineno}" if frames else "?"
 
 
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions reported as one-line errors (status 2).  A root-finding failure can only have
+    been raised if its module was imported, so it is looked up without importing the spectra."""
+    rootfinder = sys.modules.get("posicast.spectra.rootfinder")
+    return (_OneLineError, ValueError, TypeError, OSError) + ((rootfinder.RootFindingError,) if rootfinder else ())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``posicast`` command.
 
@@ -565,14 +201,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     try:
         return _run(argv)
-    except (_OneLineError, ValueError, TypeError, OSError, RootFindingError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"posicast: error: {msg}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print("posicast: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # a bug: still one line (and the traceback on request)
+    except Exception as exc:
+        if isinstance(exc, _user_errors()):
+            msg = str(exc).splitlines()[0] if str(exc).strip() else type(exc).__name__
+            print(f"posicast: error: {msg}", file=sys.stderr)
+            return 2
+        # a bug: still one line (and the traceback on request)
         if os.environ.get("POSICAST_TRACEBACK"):
             raise
         msg = str(exc).splitlines()[0] if str(exc).strip() else ""

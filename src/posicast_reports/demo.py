@@ -11,6 +11,7 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import TextIO
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -305,9 +306,28 @@ def _simulation_section(report: Report) -> None:
                 "Vibration = half the peak-to-peak of y in the window.")
 
 
-def build_report(out: str | Path) -> Path:
-    """Build the demo report in ``out`` and return the path of ``index.html``."""
+class Progress:
+    """One line on stderr per finished section: its wall and CPU time, and the running totals."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        self.start_wall, self.start_cpu = time.perf_counter(), time.process_time()
+        self.wall, self.cpu = self.start_wall, self.start_cpu
+
+    def done(self, what: str) -> None:
+        wall, cpu = time.perf_counter(), time.process_time()
+        print(f"[demo {wall - self.start_wall:6.1f} s] {what}: {wall - self.wall:.1f} s "
+              f"(CPU {cpu - self.cpu:.1f} s, total CPU {cpu - self.start_cpu:.1f} s)", file=self.stream, flush=True)
+        self.wall, self.cpu = wall, cpu
+
+
+def build_report(out: str | Path, progress: Progress | None = None) -> Path:
+    """Build the demo report in ``out`` and return the path of ``index.html``.
+
+    ``progress`` (default: lines on stderr) reports each section as it finishes.
+    """
     t0 = time.perf_counter()
+    say = (progress or Progress()).done
     report = Report("posicast demo report", out)
     report.paragraph("Every shaper kind of <code>posicast.design</code>, designed for two modes from the seed "
                      "papers, with its duration, number of impulses and insensitivity at 5 % residual vibration. "
@@ -317,16 +337,26 @@ def build_report(out: str | Path) -> Path:
         report.section(f"{title}: omega = {mode.omega} rad/s, zeta = {mode.zeta}")
         _shaper_table(report, mode)
         _sensitivity_figures(report, mode, f"mode{i}")
+        say(f"shapers for the {title}")
     _seed_checks(report)
     _ei_section(report)
+    say("seed checks and EI fit")
     _spectra_section(report)
+    say("spectra (seed 000)")
     _simulation_section(report)
+    say("simulation (seed 000 Fig. 7-8)")
     seed001_section(report)
+    say("seed 001 tuning (Table 1, Fig. 5-12)")
     seed003_section(report)
+    say("seed 003 QFT inner loop")
     identification_section(report)
+    say("identification and calibration")
     optimal_section(report)
+    say("optimal shapers")
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
-    return report.write()
+    path = report.write()
+    say(f"wrote {path}")
+    return path
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -33,7 +33,7 @@ from ..spectra.difference import common_step as _spectra_common_step
 from .constraints import Constraint
 from .family import ControllerFamily
 
-__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of"]
+__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -389,6 +389,23 @@ class FrequencyData:
         finite = np.isfinite(mag[:-1]) & np.isfinite(mag[1:])
         return bad & finite & (h > 1e-12 * self.omega[1:])
 
+    def allowed_spacing(self, X: float, Y: float) -> np.ndarray:
+        """Per grid column, the spacing :meth:`refine` accepts there for gains up to ``X, Y``:
+        ``delta`` times the size of ``1 + L`` (and of each constraint's terms) over their exact
+        derivative, as in :meth:`_violations` (``inf`` where nothing changes)."""
+        v = self._vals
+        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
+        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h = self.delta * np.maximum(mag, self.r_min) / der
+            for i, c in enumerate(self.constraints):
+                W = np.abs(v[f"W{i}"]) / c.gamma
+                dW = np.abs(v[f"dW{i}"]) / c.gamma
+                nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
+                nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
+                h = np.fmin(h, self.delta * np.maximum(np.maximum(W * nmag, mag), self.r_min) / (dW * nmag + W * nder))
+        return np.where(np.isnan(h), np.inf, h)
+
     def _limit_columns(self) -> None:
         asyms = list(self._asym.values()) + [a for d in self._casym for a in d.values()]
         delays = np.concatenate([a.delays for a in asyms if a.m >= 0] or [np.zeros(1)])
@@ -481,6 +498,47 @@ def columns_of(fd: FrequencyData) -> Columns:
     cons = tuple(ConstraintColumns(cols[f"nu{i}"], cols[f"na{i}"], cols[f"nb{i}"], cols[f"w2{i}"])
                  for i in range(len(fd.constraints)))
     return Columns(fd, fd.omega, fd.n_grid, cols["u"], cols["a"], cols["b"], cons)
+
+
+#: a grid smaller than this is never thinned (a distributed shaper's or a rational loop's grid is not)
+_THIN_ABOVE = 8000
+
+
+def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray | None]:
+    """The grid columns that lines with ``|kx| <= X`` need for ``|ky| <= Y``: ``(columns, their indices)``,
+    or ``(cols, None)`` for all of them.
+
+    The grid is refined for the largest gains scanned (:meth:`FrequencyData.refine`).
+    A lumped shaper (or any pure delay) in the loop keeps ``|L|`` from decaying, so
+    for large ``kx`` the grid must follow the delay's phase ``e^{-j omega tau}``
+    with spacing ``~ delta / tau`` up to its ceiling: tens of thousands of columns.
+    Lines with smaller ``|kx|`` need that spacing only where ``|kx a| + |ky b|`` is
+    not small against ``max(|1 + L|, r)``.  The columns kept here make every step
+    shorter than what :meth:`~FrequencyData.refine` accepts for the gains ``X, Y``
+    (:meth:`FrequencyData.allowed_spacing`): measured in units of the accepted
+    spacing along it (each grid step over the smaller accepted spacing at its two
+    ends, summed), a kept step that skips columns is below one unit: the grid
+    :meth:`~FrequencyData.refine` would build for those gains, up to the placement
+    of its points.  The first and last grid columns and every limit column are kept.  Grids below ``_THIN_ABOVE`` columns are used whole.
+    """
+    n = cols.n_grid
+    if n < _THIN_ABOVE or cols.data.omega.size != n:  # small, or columns of an older grid: all of them
+        return cols, None
+    h = cols.data.allowed_spacing(float(X), float(Y))
+    step = np.diff(cols.omega) / np.fmin(h[:-1], h[1:])
+    measure = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(step), step, 0.0))])
+    keep = np.zeros(n, dtype=bool)
+    keep[[0, n - 1]] = True
+    # a column wherever the measure passes an integer, and the one before: every kept step is < 1 unit
+    cross = np.flatnonzero(np.diff(np.floor(measure)) > 0) + 1
+    keep[cross] = True
+    keep[cross - 1] = True
+    if keep.sum() > 0.7 * n:
+        return cols, None
+    sel = np.flatnonzero(keep)
+    full = np.concatenate([sel, np.arange(n, cols.u.size)])
+    cons = tuple(ConstraintColumns(c.nu[full], c.na[full], c.nb[full], c.w2[full]) for c in cols.constraints)
+    return Columns(cols.data, cols.omega[sel], sel.size, cols.u[full], cols.a[full], cols.b[full], cons), sel
 
 
 def _refuse_improper_loop(asym: dict[str, Asymptote], family: ControllerFamily, architecture: str) -> None:

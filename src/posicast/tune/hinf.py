@@ -117,15 +117,28 @@ def forbidden_interval(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarr
     * ``A = 0`` (to 1e-13 of ``|b|^2 + w2 |nb|^2``): ``2 B ky + D <= 0``, a ray
       from ``-D / (2 B)`` (everything if ``B = 0`` and ``D <= 0``).
 
-    Returns the four pieces in that order (empty ones have ``lo = inf``, ``hi = -inf``).
+    Returns the four pieces in that order (empty ones have ``lo = inf``, ``hi = -inf``); where ``A > 0``
+    at every column given (an unweighted bound on ``S``, whose numerator does not depend on ``ky``),
+    only the first: the others are empty.
     """
     A = np.abs(b) ** 2 - w2 * np.abs(nb) ** 2
     Ascale = np.abs(b) ** 2 + w2 * np.abs(nb) ** 2
     B = (U * b.conj()).real - w2 * (N * nb.conj()).real
     D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+    with np.errstate(invalid="ignore"):
+        A = np.where(np.abs(A) <= 1e-13 * Ascale, 0.0, A)
+        positive = bool(np.all((A > 0) | np.isnan(A)))
+    if positive:  # the same numbers as below, without the pieces that cannot exist
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            disc = B * B - A * D
+            q = -(B + np.where(B >= 0, 1.0, -1.0) * np.sqrt(np.maximum(disc, 0.0)))
+            r1 = np.where(q != 0, D / q, 0.0)
+            r2 = q / A
+            pos = np.isfinite(D) & np.isfinite(B) & (A > 0) & (disc > 0)  # D finite: U finite; A > 0: A finite
+            return (ForbiddenPiece(np.where(pos, np.fmin(r1, r2), _INF), np.where(pos, np.fmax(r1, r2), -_INF),
+                                   Root.SMALLER, Root.LARGER, pos),)
     A = A * np.ones((U.shape[0], 1))
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        A = np.where(np.abs(A) <= 1e-13 * Ascale, 0.0, A)
         disc = B * B - A * D
         sq = np.sqrt(np.maximum(disc, 0.0))
         q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
@@ -242,13 +255,15 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
     los, his, cl, ch, cons, lr, hr = [], [], [], [], [], [], []
     ncol = cols.u.size
     colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
+    U = cols.u[None, :] + x[:, None] * cols.a[None, :]
     for ci in which:
         nu, na, nb, w2 = cols.constraints[ci]
-        U = cols.u[None, :] + x[:, None] * cols.a[None, :]
         N = nu[None, :] + x[:, None] * na[None, :]
         pieces = forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])
         dU = np.abs(np.diff(U, axis=1)) if hull else None
         for lo_, hi_, lroot, hroot, V in pieces:
+            if (V is not None and not V.any()) or (V is None and not np.any(lo_ <= hi_)):
+                continue  # empty everywhere on these lines (e.g. no A < 0 for an unweighted Ms bound)
             if hull and V is not None:
                 lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
             else:
@@ -257,9 +272,13 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
             his.append(hi_)
             cl.append(c_lo)
             ch.append(c_hi)
-            cons.append(np.full(ncol, ci))
-            lr.append(np.full(ncol, int(lroot)))
-            hr.append(np.full(ncol, int(hroot)))
+            cons.append(np.full(lo_.shape[1], ci))
+            lr.append(np.full(lo_.shape[1], int(lroot)))
+            hr.append(np.full(lo_.shape[1], int(hroot)))
+    if not los:  # nothing forbidden anywhere: one empty piece keeps the shapes
+        los, his, cl, ch = [np.full((m, 1), _INF)], [np.full((m, 1), -_INF)], [np.zeros((m, 1), int)], \
+            [np.zeros((m, 1), int)]
+        cons, lr, hr = [np.zeros(1, int)], [np.full(1, int(Root.INFINITE))], [np.full(1, int(Root.INFINITE))]
     return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), np.concatenate(cl, axis=1),
                      np.concatenate(ch, axis=1), np.concatenate(cons), np.concatenate(lr), np.concatenate(hr))
 
@@ -337,7 +356,7 @@ def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root
 
 
 def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
-                upper: np.ndarray, rounds: int = 4) -> np.ndarray:
+                upper: np.ndarray, rounds: int = 4, where: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Exact interval ends: the extremum over frequency of each end's root, refined between its
     column's neighbours (vectorised over all ends).
 
@@ -347,11 +366,13 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     call for all ends) and keeps the two intervals around the best point, so the
     bracket shrinks 4x per round; the grid value stands where nothing better is
     found.  (A parabola through three grid points, used before, can overshoot a
-    sharp minimum and make the region smaller than it is.)
+    sharp minimum and make the region smaller than it is.)  With ``where``, also
+    the frequency of each end's extremum (NaN for the ends not polished).
     """
     idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
+    omega = np.full(values.shape, np.nan)
     if not idx:
-        return values
+        return (values, omega) if where else values
     k = np.array(idx)
     col = np.array([ends[i][0] for i in idx])
     ci = np.array([ends[i][1] for i in idx])
@@ -362,6 +383,7 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     hi = cols.omega[col + 1].astype(float)
     best = sign * values[k]
     best = np.where(np.isfinite(best), best, _INF)
+    best_w = cols.omega[col].astype(float)
     t = np.linspace(0.0, 1.0, 9)
     for _ in range(rounds):
         w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
@@ -378,12 +400,16 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
         f = np.where(np.isfinite(f), f, _INF)
         j = np.argmin(f, axis=1)
         fj = f[np.arange(f.shape[0]), j]
-        best = np.minimum(best, fj)
         wj = w[np.arange(w.shape[0]), j]
+        best_w = np.where(fj < best, wj, best_w)
+        best = np.minimum(best, fj)
         step = (hi - lo) / 8.0
         lo, hi = np.maximum(lo, wj - step), np.minimum(hi, wj + step)
     out = values.copy()
     out[k] = np.where(np.isfinite(best), sign * best, values[k])
+    if where:
+        omega[k] = best_w
+        return out, omega
     return out
 
 

@@ -32,8 +32,8 @@ from ..loops import Loop
 from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
-from .frequency import Columns, FrequencyData, columns_of
-from .hinf import Cut, Ends, complement, forbidden, forbidden_window, polish_ends
+from .frequency import Columns, FrequencyData, columns_of, thin_columns
+from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, forbidden_window, polish_ends
 
 __all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "intersect", "subtract"]
 
@@ -233,40 +233,89 @@ def intersect(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------- the scan
 def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
-    """Compute :class:`LineData` for each ``x`` in ``xs`` (vectorised over frequency, in blocks of lines)."""
+    """Compute :class:`LineData` for each ``x`` in ``xs`` (vectorised over frequency, in blocks of lines).
+
+    The lines are taken in groups of similar ``|x|`` (a decade each).  A group's
+    H-infinity intervals are computed on the grid columns its gains need over the
+    whole ``ky`` window (:func:`~posicast.tune.frequency.thin_columns`: with a lumped
+    shaper the grid is dense only where ``|L|`` is large for those gains); its
+    D-decomposition crossings on the whole grid.
+    """
+    cols = problem.columns
+    xs = np.asarray(xs, dtype=float)
+    out: list[LineData | None] = [None] * xs.size
+    y_top = min(max(abs(problem.y_window[0]), abs(problem.y_window[1])), problem.y_valid)
+    mag = np.abs(xs)
+    with np.errstate(divide="ignore"):
+        decade = np.floor(np.log10(mag))  # -inf at x = 0: those lines join the lowest decade
+    finite = np.isfinite(decade)
+    decade = np.where(finite, decade, float(decade[finite].min()) if finite.any() else 0.0)
+    for d in np.unique(decade):
+        group = np.flatnonzero(decade == d)
+        sub, sel = thin_columns(cols, float(mag[group].max()), y_top)
+        block = max(1, int(2_000_000 // max(1, sub.u.size * max(1, sub.n_constraints))))
+        for k in range(0, group.size, block):
+            idx = group[k : k + block]
+            for i, line in zip(idx, _scan_block(problem, sub, sel, xs[idx])):
+                out[i] = line
+    return [ln for ln in out if ln is not None]
+
+
+def _scan_block(problem: Problem, sub: Columns, sel: np.ndarray | None, xb: np.ndarray) -> list[LineData]:
+    """The lines ``xb``: H-infinity intervals on the columns ``sub`` (the grid's columns ``sel``; None: all)."""
     cols = problem.columns
     nc = cols.n_constraints
-    xs = np.asarray(xs, dtype=float)
-    out: list[LineData] = []
-    block = max(1, int(2_000_000 // max(1, cols.u.size * max(1, nc))))
-    for k in range(0, xs.size, block):
-        xb = xs[k : k + block]
-        total = complement(forbidden(cols, xb, range(nc)))
-        per: list[list[np.ndarray]] = [[] for _ in xb]
-        if nc > 1:
-            for ci in range(nc):
-                for i, (iv, _) in enumerate(complement(forbidden(cols, xb, [ci]))):
-                    per[i].append(iv)
-        cbr = complex_breaks(cols, problem.curve, xb)
-        polished = _polish_block(cols, xb, total)
-        for i, x in enumerate(xb):
-            iv, ends, per_i = _clip_to_window(problem, polished[i], total[i][1], per[i])
-            iv, ends, cx = _cut_missed_intervals(problem, float(x), iv, ends, cbr[i])
-            breaks, kinds, errs = _line_breaks(problem, x, cx)
-            out.append(LineData(float(x), iv, per_i if nc > 1 else [iv], breaks, kinds, ends,
-                                np.full(breaks.size + 1, -1, dtype=int), errs))
+    total = complement(forbidden(sub, xb, range(nc)))
+    per: list[list[np.ndarray]] = [[] for _ in xb]
+    if nc > 1:
+        for ci in range(nc):
+            for i, (iv, _) in enumerate(complement(forbidden(sub, xb, [ci]))):
+                per[i].append(iv)
+    cbr = complex_breaks(cols, problem.curve, xb)
+    polished, total = _polish_block(sub, sel, cols, xb, total)
+    out = []
+    for i, x in enumerate(xb):
+        iv, ends, per_i = _clip_to_window(problem, polished[i], total[i][1], per[i])
+        iv, ends, cx = _cut_missed_intervals(problem, float(x), iv, ends, cbr[i])
+        breaks, kinds, errs = _line_breaks(problem, x, cx)
+        out.append(LineData(float(x), iv, per_i if nc > 1 else [iv], breaks, kinds, ends,
+                            np.full(breaks.size + 1, -1, dtype=int), errs))
     return out
 
 
-def _polish_block(cols: Columns, xb: np.ndarray, total: list[tuple[np.ndarray, Ends]]) -> list[np.ndarray]:
-    """Every interval end of a block of lines polished in one vectorised pass (:func:`polish_ends`)."""
+def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.ndarray,
+                  total: list[tuple[np.ndarray, Ends]]) -> tuple[list[np.ndarray], list[tuple[np.ndarray, Ends]]]:
+    """Every interval end of a block of lines polished in one vectorised pass (:func:`polish_ends`).
+
+    On thinned columns (``sel`` not None) each end is then named by the whole grid's column
+    nearest to its extremum, so that later refinements (:func:`~posicast.tune.hinf.exact_end`)
+    bracket it between that grid's neighbours.
+    """
     flat_ends = [e for _, ends in total for pair in ends for e in pair]
     flat_x = np.concatenate([np.full(2 * len(ends), x) for x, (_, ends) in zip(xb, total)])
     flat_v = np.concatenate([iv.reshape(-1) for iv, _ in total])
     upper = np.concatenate([np.tile([False, True], len(ends)) for _, ends in total])
-    polished = polish_ends(cols, flat_x, flat_ends, flat_v, upper)
+    polished, where = polish_ends(sub, flat_x, flat_ends, flat_v, upper, where=True)
     offsets = np.cumsum([0] + [2 * len(ends) for _, ends in total])
-    return [polished[offsets[i] : offsets[i + 1]].reshape(-1, 2).copy() for i in range(len(total))]
+    if sel is not None:
+        named = [_grid_branch(e, w, sub, sel, cols) for e, w in zip(flat_ends, where)]
+        total = [(iv, [(named[offsets[i] + 2 * j], named[offsets[i] + 2 * j + 1]) for j in range(len(ends))])
+                 for i, (iv, ends) in enumerate(total)]
+    return [polished[offsets[i] : offsets[i + 1]].reshape(-1, 2).copy() for i in range(len(total))], total
+
+
+def _grid_branch(end: IntervalEnd, w: float, sub: Columns, sel: np.ndarray, cols: Columns) -> IntervalEnd:
+    """A branch found on the thinned columns ``sub``, named by the whole grid's column nearest to ``w``
+    (its polished extremum); a limit column keeps its place among the limit columns."""
+    if not isinstance(end, Branch):
+        return end
+    if end.column >= sub.n_grid:
+        return Branch(cols.n_grid + end.column - sub.n_grid, end.constraint, end.root)
+    col = int(sel[end.column])
+    if math.isfinite(w):
+        j = int(np.clip(np.searchsorted(cols.omega, w), 1, cols.n_grid - 1))
+        col = j if abs(cols.omega[j] - w) < abs(cols.omega[j - 1] - w) else j - 1
+    return Branch(col, end.constraint, end.root)
 
 
 def _clip_to_window(problem: Problem, iv: np.ndarray, ends: Ends,

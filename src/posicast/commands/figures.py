@@ -1,0 +1,62 @@
+"""Figures of the command line: matplotlib on the Agg backend, written atomically at exactly the path given.
+
+:func:`pyplot` is the command line's one matplotlib import: only the subcommands
+that draw pay for it.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+from .. import _validate as v
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+__all__ = ["pyplot", "output_path", "save_atomic"]
+
+
+def pyplot() -> ModuleType:
+    """``matplotlib.pyplot`` on the file-only Agg backend, imported on first use (the CLI's one matplotlib import)."""
+    import matplotlib  # lazy: about half a second that only the drawing subcommands need
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def output_path(value: Any, option: str) -> Path:
+    """Check an output figure path before any work (see the module docstring); returns a Path."""
+    return v.path_for_output(value, option)
+
+
+def save_atomic(fig: Figure, out: str, option: str = "--plot") -> None:
+    """Write ``fig`` at exactly ``out``, atomically: a hidden temporary file in the same directory,
+    renamed onto ``out`` once complete.  On any failure nothing is left behind and the error
+    (a one-line ValueError) names ``option`` and the user's path, never the temporary file."""
+    try:
+        target = output_path(out, option)
+        fmt = target.suffix.lower()[1:]
+        tmp = None
+        try:
+            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+            with os.fdopen(fd, "wb") as fh:
+                fig.savefig(fh, format=fmt, dpi=110, bbox_inches="tight")
+            mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
+            os.umask(mask)
+            os.chmod(tmp, 0o666 & ~mask)
+            os.replace(tmp, target)
+            tmp = None
+        except (OSError, ValueError, RuntimeError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
+            raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
+        finally:
+            if tmp is not None and os.path.exists(tmp):
+                os.unlink(tmp)
+    finally:
+        pyplot().close(fig)

@@ -1,0 +1,89 @@
+"""``posicast design``, ``posicast kinds`` and ``posicast sensitivity``: shapers from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from typing import Any
+
+from .. import _validate as v
+from ..analysis import insensitivity, sensitivity_plot
+from ..modes import Mode
+from ..shapers import registry  # registry.design at call time: the suite patches it to test status 70
+from ..shapers.base import Shaper
+from .figures import pyplot, save_atomic
+
+__all__ = ["run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``kinds``, ``design`` or ``sensitivity`` (``args.command``)."""
+    if args.command == "kinds":
+        for name, spec in registry.KINDS.items():
+            params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
+            print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
+        return 0
+    if args.command == "sensitivity":  # the tolerance before any design work
+        v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
+    mode = _mode(args)
+    if args.command == "design":
+        kind = args.kind.lower()
+        S = registry.design(kind, mode, **_params(args, kind))
+        if args.json:
+            print(json.dumps(S.to_dict(), indent=2))
+        else:
+            _print_shaper(S)
+        return 0
+    # sensitivity: design, analyse, draw; write last
+    pyplot()  # the Agg backend before sensitivity_plot draws
+    shapers = [registry.design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
+    ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
+    lines = []
+    for S in shapers:
+        ins = insensitivity(S, args.tol, reference=ref)
+        lines.append(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
+    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
+    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
+    save_atomic(fig, args.out, "--out")
+    for line in lines:
+        print(line)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
+    accepted = registry.KINDS[kind].params if kind in registry.KINDS else {}
+    out = {}
+    for name in ("vtol", "k", "n", "m", "T", "method"):
+        val = getattr(args, name)
+        if val is None:
+            continue
+        if name not in accepted:
+            raise ValueError(f"--{name} does not apply to kind {kind!r}")
+        out[name] = val
+    return out
+
+
+def _mode(args: argparse.Namespace) -> Mode:
+    if args.omega is not None:
+        return Mode(args.omega, args.zeta)
+    return Mode.from_hz(args.freq_hz, args.zeta)
+
+
+def _print_shaper(S: Shaper) -> None:
+    m = S.modes[0]
+    print(f"{S.name} shaper for omega = {m.omega:.6g} rad/s ({m.freq_hz:.6g} Hz), zeta = {m.zeta:.6g}")
+    if S.params:
+        print("parameters: " + ", ".join(f"{k} = {v:.10g}" if isinstance(v, float) else f"{k} = {v}"
+                                         for k, v in S.params.items()))
+    print(f"{'t [s]':>14}  {'amplitude':>14}")
+    for t, a in zip(*S.impulses):
+        print(f"{t:14.10f}  {a:14.10f}")
+    for p in S.distributed:
+        shapes = " * ".join(f"{k.shape}(T={k.T:.10g})" for k in p.kernels)
+        print(f"distributed: weight {p.weight:.10f} on [{p.delay:.10f}, {p.end:.10f}] s, kernel {shapes}")
+    if S.continuous is not None:
+        print(f"IIR part: {S.continuous}")
+    dur = S.duration
+    print(f"duration: {dur:.10f} s" if math.isfinite(dur) else "duration: infinite (IIR)")

@@ -1,0 +1,67 @@
+"""Tuning with a lumped shaper in the loop (issue #15 part A): the scan's thinned frequency columns.
+
+A lumped shaper keeps ``|L|`` from decaying, so the grid refined for the largest
+gains of the sweep is dense (``~ delta / tau``) up to its ceiling.  Each group of
+scan lines uses only the columns its own gains need over the whole ``ky`` window
+(``posicast.tune.frequency.thin_columns``).  The reference is the same design on
+every column of the grid (thinning switched off).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import posicast
+from posicast.cases import ALL
+from posicast.tune import frequency
+from posicast.tune.frequency import thin_columns
+
+CRANE = ALL["gantry_crane"]
+
+
+@pytest.fixture(scope="module")
+def zv_designs():
+    S = posicast.design("zv", CRANE.mode)
+    thinned = posicast.tune_pd(CRANE.G, S, "control_action", ms=1.2, F=CRANE.F)
+    saved = frequency._THIN_ABOVE
+    frequency._THIN_ABOVE = 10**12  # every column, as before issue #15
+    try:
+        full = posicast.tune_pd(CRANE.G, S, "control_action", ms=1.2, F=CRANE.F)
+    finally:
+        frequency._THIN_ABOVE = saved
+    return thinned, full
+
+
+def test_thinned_columns_obey_the_grid_refinement_rule(zv_designs):
+    """Every kept step that skips columns is shorter than the spacing the grid refinement accepts for the
+    gains asked for (below one unit of it, summed along the step); the first and last grid columns and all limit columns are kept; far fewer columns remain."""
+    cols = zv_designs[0].region.problem.columns
+    X, Y = 2.0, 1e6
+    sub, sel = thin_columns(cols, X, Y)
+    assert sel is not None and sub.n_grid < 0.7 * cols.n_grid
+    assert sel[0] == 0 and sel[-1] == cols.n_grid - 1
+    assert sub.u.size - sub.n_grid == cols.u.size - cols.n_grid  # the limit columns
+    h = cols.data.allowed_spacing(X, Y)
+    units = np.concatenate([[0.0], np.cumsum(np.diff(cols.omega[: cols.n_grid]) / np.fmin(h[:-1], h[1:]))])
+    skipping = np.diff(sel) > 1
+    assert skipping.any() and np.all(np.diff(units[sel])[skipping] < 1.0)
+    np.testing.assert_array_equal(sub.u[: sub.n_grid], cols.u[sel])
+    # a small grid (a distributed shaper's) is used whole
+    dezv = posicast.tune_pd(CRANE.G, posicast.design("dezv", CRANE.mode), "control_action", ms=1.2, F=CRANE.F)
+    small = dezv.region.problem.columns
+    assert thin_columns(small, X, Y) == (small, None)
+
+
+def test_lumped_design_is_the_full_grid_design(zv_designs):
+    """Same optimum and same H-infinity intervals as the scan on every column (ZV in the control action,
+    Ms = 1.2; the optimum 8.6139 / 1.4681 is the full-grid design's)."""
+    thinned, full = zv_designs
+    assert thinned.kp == pytest.approx(full.kp, rel=1e-9) and thinned.kd == pytest.approx(full.kd, rel=1e-9)
+    assert thinned.kp == pytest.approx(8.6139, rel=1e-4) and thinned.kd == pytest.approx(1.4681, rel=1e-4)
+    assert thinned.ms == pytest.approx(1.2, abs=1e-6) and thinned.stable
+    a, b = thinned.region, full.region
+    np.testing.assert_array_equal(a.x, b.x)
+    for la, lb in zip(a.lines, b.lines):
+        assert la.hinf.shape == lb.hinf.shape
+        np.testing.assert_allclose(la.hinf, lb.hinf, rtol=1e-6, atol=1e-9)
