@@ -18,7 +18,8 @@ Systems (:mod:`posicast.core`)
     is in *ascending* powers, ``coeffs[i, k]`` multiplying ``s^k exp(-s delays[i])``
     (``QuasiPolynomial(coeffs, delays)``, a ``(coeffs, delays)`` pair, ``.coeffs``).
 Shapers (:mod:`posicast.shapers`)
-    ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``.
+    ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``,
+    ``zplane_shaper``, ``highest_multiplicity``, ``OrderChoice`` (z-plane shapers, seed 002 eq. 4-12).
 Spectra (:mod:`posicast.spectra`) -- each verb is also a method of every object
     ``roots``, ``poles``, ``zeros``, ``stability``, ``spectral_abscissa``, ``rightmost``,
     ``difference_spectrum``, ``Roots``.
@@ -33,6 +34,8 @@ Tuning (:mod:`posicast.tune`)
     ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
 Identification and printer calibration (:mod:`posicast.identification`)
     ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
+Export (:mod:`posicast.io`)
+    ``export_shaper`` (sparse or dense taps, forward or inverse, JSON or compilable C).
 Case studies
     :mod:`posicast.cases` (the seeds' plants, each with its source).
 
@@ -55,10 +58,12 @@ from .core import QuasiPolynomial, TransferFunction, as_transfer, delay
 from .identification import Calibration, Identification, Interval, NoModeFound, calibrate, identify
 from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
-from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
+from .shapers import (KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, OrderChoice, Shaper, design,
+                      highest_multiplicity, zplane_shaper)
 from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
+from .io import export_shaper
 
 __version__ = "0.1.0"
 
@@ -74,6 +79,7 @@ __all__ = [
     "QuasiPolynomial", "TransferFunction", "as_transfer", "delay", "Mode",
     # shapers
     "design", "KINDS", "ZERO_VIBRATION_KINDS", "Shaper", "Kernel", "DistributedPart",
+    "zplane_shaper", "highest_multiplicity", "OrderChoice",
     # spectra
     "roots", "poles", "zeros", "stability", "spectral_abscissa", "rightmost", "difference_spectrum", "Roots",
     # loops
@@ -87,6 +93,8 @@ __all__ = [
     "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
     # identification and calibration
     "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
+    # export
+    "export_shaper",
     # case studies
     "cases",
 ]
