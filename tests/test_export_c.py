@@ -99,3 +99,20 @@ def test_export_bad_input():
     with pytest.raises(ValueError, match="IIR part"):
         export_shaper(pc.design("notch", MODE), FS, inverse=True)
     assert pc.export_shaper is export_shaper
+
+
+def test_cli_export(tmp_path, capsys):
+    from posicast.cli import main
+    assert main(["export", "zvd", "--freq-hz", "28", "--zeta", "0.05", "--sample-rate", "100", "--zplane",
+                 "--format", "json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    S = pc.design("zvd", pc.Mode.from_hz(28.0, 0.05), sample_period=0.01)
+    assert doc["sparse"]["index"] == [0, 1, 2, 3, 4]
+    assert np.allclose(doc["sparse"]["weight"], S.amplitudes, atol=1e-15)
+    out = tmp_path / "inv.h"
+    assert main(["export", "dzv", "--omega", "8.98", "--zeta", "0.14", "--sample-rate", "200", "--inverse",
+                 "--precision", "float", "--output", str(out)]) == 0
+    assert "inverse stability: stable" in out.read_text()
+    assert main(["export", "zv", "--omega", "10", "--zeta", "0", "--sample-rate", "100", "--stride", "2"]) == 2
+    assert "--stride applies only with --zplane" in capsys.readouterr().err
+    assert main(["export", "zv", "--omega", "10", "--zeta", "0", "--sample-rate", "100", "--output", "x.png"]) == 2

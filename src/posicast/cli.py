@@ -47,6 +47,7 @@ from .identification.estimators import identify
 from .identification.plots import calibration_plot
 from .identification.resonance import resonance_data
 from .identification.significance import MAX_MODES
+from .io.export import EXPORT_FORMATS, EXPORT_FORMS, EXPORT_PRECISIONS, export_shaper
 from .modes import Mode
 from .shapers.base import Shaper
 from .shapers import registry  # registry.design at call time: the suite patches it to test status 70
@@ -114,6 +115,21 @@ def _build_parser() -> _Parser:
     s.add_argument("--tol", type=float, default=0.05, help="tolerance line and insensitivity level (default 0.05)")
 
     sub.add_parser("kinds", help="list the shaper kinds")
+
+    x = sub.add_parser("export", help="export a shaper (or its inverse) for a controller as C or JSON")
+    x.add_argument("kind", help="shaper kind (see 'posicast kinds')")
+    _add_mode_args(x)
+    _add_param_args(x)
+    x.add_argument("--sample-rate", type=float, required=True, help="controller sample rate [Hz]")
+    x.add_argument("--zplane", action="store_true",
+                   help="design in the z plane at 1/sample-rate (zv/zvd/zvdd/zvddd/zvdk, seed 002 eq. 8)")
+    x.add_argument("--stride", default=None, help="with --zplane: samples between taps, or 'positive'")
+    x.add_argument("--format", choices=EXPORT_FORMATS, default="c", help="c (default) or json")
+    x.add_argument("--form", choices=EXPORT_FORMS, default="sparse", help="sparse taps (default) or dense")
+    x.add_argument("--precision", choices=EXPORT_PRECISIONS, default="double", help="C type (default double)")
+    x.add_argument("--inverse", action="store_true", help="export 1/S (seed 000 eq. 19-20)")
+    x.add_argument("--name", default="shaper", help="C identifier for the arrays and functions")
+    x.add_argument("--output", help="write to this file (.h, .c, .json, .txt) instead of standard output")
 
     i = sub.add_parser("identify", help="identify lightly damped modes in a CSV or Klipper file")
     i.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
@@ -465,6 +481,31 @@ def _print_shaper(S: Shaper) -> None:
     print(f"duration: {dur:.10f} s" if math.isfinite(dur) else "duration: infinite (IIR)")
 
 
+def _export_cmd(args: argparse.Namespace) -> int:
+    out = None if args.output is None else v.path_for_output(args.output, "--output", (".h", ".c", ".json", ".txt"))
+    kind = args.kind.lower()
+    params = _params(args, kind)
+    fs = v.positive(args.sample_rate, "--sample-rate")
+    if args.zplane:
+        stride: Any = args.stride
+        if stride not in (None, "positive"):
+            if not stride.isdigit():
+                raise ValueError(f"--stride must be an integer >= 1 or 'positive', got {stride!r}")
+            stride = v.integer(int(stride), "--stride", 1)
+        params.update(sample_period=1.0 / fs, **({} if stride is None else {"stride": stride}))
+    elif args.stride is not None:
+        raise ValueError("--stride applies only with --zplane")
+    S = registry.design(kind, _mode(args), **params)
+    text = export_shaper(S, fs, args.format, name=args.name, form=args.form, inverse=args.inverse,
+                         precision=args.precision)
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.write_text(text)
+        print(f"wrote {out}")
+    return 0
+
+
 def _run(argv: Sequence[str] | None) -> int:
     args = _build_parser().parse_args(argv)
     for opt in _OUTPUT_OPTIONS:  # every output path is checked before any work
@@ -480,6 +521,8 @@ def _run(argv: Sequence[str] | None) -> int:
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
             print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
         return 0
+    if args.command == "export":
+        return _export_cmd(args)
     if args.command == "sensitivity":  # the tolerance before any design work
         v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
     mode = _mode(args)

@@ -198,7 +198,7 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
                 "    st->n = 0;"]
     if iir:
         # lfilter_zi-style steady state of the transposed direct form II for a constant input x0
-        out += [f"    {{ double y0 = 0.0, sb = 0.0, sa = 0.0; int j;",
+        out += ["    { double y0 = 0.0, sb = 0.0, sa = 0.0; int j;",
                 f"      for (j = 0; j <= {U}_IIR_ORDER; ++j) {{ sb += {name}_iir_b[j]; sa += {name}_iir_a[j]; }}",
                 "      y0 = sb / sa * (double)x0;",
                 f"      for (i = 0; i < {U}_IIR_ORDER; ++i) {{",
@@ -252,7 +252,7 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
         f"    static {name}_state st;",
         "    double x;",
         "    int first = 1;",
-        f"    while (scanf(\"%lf\", &x) == 1) {{",
+        "    while (scanf(\"%lf\", &x) == 1) {",
         f"        if (first) {{ {name}_init(&st, ({T})0); first = 0; }}",
         f"        printf(\"%.17g\\n\", (double){name}_step(&st, ({T})x));",
         "    }",
