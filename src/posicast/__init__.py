@@ -29,7 +29,8 @@ Analysis (:mod:`posicast.analysis`)
     ``residual_vibration``, ``sensitivity_curve``, ``insensitivity``, ``SensitivityCurve``,
     ``Insensitivity``, ``sensitivity_plot``, ``impulse_plot``.
 Simulation (:mod:`posicast.simulation`)
-    ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``.
+    ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``, ``sampled_loop``,
+    ``SampledLoop`` (the loop's poles at the sample rate).
 Tuning (:mod:`posicast.tune`)
     ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
 Identification and printer calibration (:mod:`posicast.identification`)
@@ -60,7 +61,7 @@ from .loops import Loop, control_action, feedforward, inverse_shaper
 from .modes import Mode
 from .shapers import (KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, OrderChoice, Shaper, design,
                       highest_multiplicity, zplane_shaper)
-from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
+from .simulation import SampledLoop, ShaperFilter, SimulationResponse, sampled_loop, shape_signal, simulate
 from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
 from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 from .io import export_shaper
@@ -88,7 +89,7 @@ __all__ = [
     "residual_vibration", "sensitivity_curve", "insensitivity", "SensitivityCurve", "Insensitivity",
     "sensitivity_plot", "impulse_plot",
     # simulation
-    "simulate", "SimulationResponse", "ShaperFilter", "shape_signal",
+    "simulate", "SimulationResponse", "ShaperFilter", "shape_signal", "sampled_loop", "SampledLoop",
     # tuning
     "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
     # identification and calibration
