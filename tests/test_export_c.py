@@ -34,7 +34,7 @@ def _run_c(text, x, tmp_path, tag):
     return np.array([float(s) for s in out.stdout.split()])
 
 
-CASES = [("zvd", {}, False), ("dzv", {}, False), ("dtzv", {}, False), ("notch", {}, False),
+CASES = [("zvd", {}, False), ("dzv", {}, False), ("dtzv", {}, False), ("dczv", {}, False), ("notch", {}, False),
          ("zv", {}, True), ("dzv", {}, True), ("zvd", {"sample_period": 0.002, "stride": "positive"}, False)]
 
 

@@ -14,7 +14,7 @@ from posicast.simulation.streaming import ShaperFilter, _dense_shape, discretize
 FS = 1000.0
 MODE = pc.Mode.from_hz(3.0, 0.05)
 KINDS = ["zv", "zvd", "zvddd", "ei", "ei3", "mzv", "dzv", "dezv", "dtzv", "dczv", "dtazv", "notch"]
-RUNNING_SUMS = {"dzv": 1, "dezv": 1, "dtzv": 2, "dtazv": 1}  # segments per kind (uniform/linear pieces)
+RUNNING_SUMS = {"dzv": 1, "dezv": 1, "dtzv": 2, "dtazv": 1, "dczv": 1}  # segments per kind (kernel pieces)
 
 
 def _signal(n, seed=0):
@@ -40,13 +40,13 @@ def test_sparse_equals_dense_convolution(kind):
 def test_per_sample_work_does_not_grow_with_the_shaper_duration():
     # the same ZVD (and DZV) for a mode 100 times slower: same number of terms per sample
     fast, slow = pc.Mode.from_hz(5.0, 0.02), pc.Mode.from_hz(0.05, 0.02)
-    for kind in ("zvd", "dzv", "dtazv"):
+    for kind in ("zvd", "dzv", "dtazv", "dczv"):
         a, b = discretize(pc.design(kind, fast), 10000.0), discretize(pc.design(kind, slow), 10000.0)
         assert b.sparse.span > 90 * a.sparse.span
         assert a.sparse.n_terms == b.sparse.n_terms
 
 
-@pytest.mark.parametrize("kind", ["zvd", "dzv", "dtzv", "notch"])
+@pytest.mark.parametrize("kind", ["zvd", "dzv", "dtzv", "dczv", "notch"])
 @pytest.mark.parametrize("inverse", [False, True])
 def test_streaming_equals_batch_exactly(kind, inverse):
     S = pc.design(kind, pc.Mode.from_hz(3.0, 0.1))
@@ -71,13 +71,14 @@ def test_streaming_equals_batch_exactly(kind, inverse):
 
 def test_running_sums_resynchronise_exactly():
     # a resync every 50 samples (at absolute sample numbers) leaves the output that of the dense taps
-    D = discretize(pc.design("dtzv", pc.Mode.from_hz(20.0, 0.05)), FS)
-    x = _signal(2000, 3) * 1e3
-    ref = signal.lfilter(D.taps, [1.0], x)
-    for resync in (50, 97, None):
-        e = SparseEngine(D.sparse, False, 0.0, resync=resync)
-        y = np.concatenate([e.process(x[:333]), e.process(x[333:])])
-        assert np.max(np.abs(y - ref)) <= 1e-12 * np.max(np.abs(x))
+    for kind in ("dtzv", "dczv"):
+        D = discretize(pc.design(kind, pc.Mode.from_hz(20.0, 0.05)), FS)
+        x = _signal(2000, 3) * 1e3
+        ref = signal.lfilter(D.taps, [1.0], x)
+        for resync in (50, 97, None):
+            e = SparseEngine(D.sparse, False, 0.0, resync=resync)
+            y = np.concatenate([e.process(x[:333]), e.process(x[333:])])
+            assert np.max(np.abs(y - ref)) <= 1e-12 * np.max(np.abs(x))
 
 
 @pytest.mark.parametrize("kind", ["zv", "dzv"])

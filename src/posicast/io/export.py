@@ -70,8 +70,9 @@ def _json(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseSta
     if form == "sparse":
         doc["sparse"] = {
             "index": sp.index.tolist(), "weight": sp.weight.tolist(),
-            "segments": [{"start": g.start, "stop": g.stop, "c0": g.c0, "c1": g.c1,
-                          "taps": "c0 + c1 (k - start) / max(stop - start, 1) for start <= k <= stop"}
+            "segments": [{"start": g.start, "stop": g.stop, "c0": g.c0, "c1": g.c1, "c2": g.c2, "omega": g.omega,
+                          "taps": ("c0 + c1 cos(omega (k - start)) + c2 sin(omega (k - start))" if g.omega else
+                                   "c0 + c1 (k - start) / max(stop - start, 1)") + " for start <= k <= stop"}
                          for g in sp.segments],
             "resync": resync,
         }
@@ -107,7 +108,12 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
     U, T = name.upper(), f"{name}_real"
     lit = (lambda x: _lit(x, prec))
     if form == "sparse":
-        idx, wts, segs = sp.index.tolist(), sp.weight.tolist(), sp.segments
+        idx, wts = sp.index.tolist(), sp.weight.tolist()
+        segs = tuple(g for g in sp.segments if not g.omega)
+        for g in sp.segments:   # a cosine kernel's taps are written out (no rotating sums in the C)
+            if g.omega:
+                idx += list(range(g.start, g.stop + 1))
+                wts += g.weights().tolist()
         span = sp.span
     else:
         nz = np.arange(D.n_taps)

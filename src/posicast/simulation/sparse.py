@@ -12,6 +12,9 @@ A discretised shaper is kept as
   integral of seed 000 eq. 20):
   ``M0[n] = M0[n-1] + x[n-s] - x[n-e-1]``,
   ``M1[n] = M1[n-1] + (M0[n-1] - x[n-1-e]) / L - x[n-1-e]``.
+  Inside a cosine kernel the taps are ``c0 + c1 cos(W (k - s)) + c2 sin(W (k - s))``
+  and the rotating sum ``Mc[n] = sum_k exp(jW (k - s)) x[n-k]`` obeys
+  ``Mc[n] = exp(jW) Mc[n-1] + x[n-s] - exp(jW (L + 1)) x[n-1-e]``.
   Every ``resync`` samples (at absolute sample numbers, so chunking never changes
   the arithmetic) the sums are recomputed exactly (``math.fsum``): the rounding of
   the recursion cannot drift over a long run.
@@ -27,9 +30,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
+from scipy import signal
 
 __all__ = ["Segment", "SparseTaps", "InverseStability", "SparseEngine", "inverse_stability", "sparse_from_parts"]
 
@@ -38,7 +42,7 @@ MIN_SEGMENT = 8
 #: A run is a segment only if the line fits its taps to this fraction of its largest tap.
 FIT_TOL = 1e-12
 #: Kernel shapes whose pieces are polynomials of degree <= 1 (the cosine kernel stays sparse taps).
-_DEGREE = {"uniform": 0, "decreasing": 1, "triangular": 1}
+_DEGREE = {"uniform": 0, "decreasing": 1, "triangular": 1, "cosine": -1}  # -1: a sinusoid plus a constant
 #: |spectral radius - 1| below this is "marginal" (zeros on the unit circle to rounding).
 MARGINAL_TOL = 1e-9
 _ROOTS_MAX = 400  # up to this degree the zeros of S_d come from np.roots; above by winding numbers
@@ -46,20 +50,30 @@ _ROOTS_MAX = 400  # up to this degree the zeros of S_d come from np.roots; above
 
 @dataclass(frozen=True)
 class Segment:
-    """Taps ``c0 + c1 (k - start) / L`` for ``start <= k <= stop`` (``L = max(stop - start, 1)``)."""
+    """Taps on ``start <= k <= stop``: ``c0 + c1 (k - start) / L`` (``L = max(stop - start, 1)``), or for
+    ``omega != 0`` (radians per sample) ``c0 + c1 cos(omega (k - start)) + c2 sin(omega (k - start))``."""
 
     start: int
     stop: int
     c0: float
     c1: float = 0.0
+    c2: float = 0.0
+    omega: float = 0.0
 
     @property
     def length(self) -> int:
         return max(self.stop - self.start, 1)
 
+    def basis(self) -> np.ndarray:
+        """The second (and third) basis function on the segment: rows ``(k - s)/L`` or ``cos, sin``."""
+        j = np.arange(self.stop - self.start + 1, dtype=float)
+        if self.omega:
+            return np.vstack([np.cos(self.omega * j), np.sin(self.omega * j)])
+        return (j / self.length)[None, :]
+
     def weights(self) -> np.ndarray:
-        k = np.arange(self.start, self.stop + 1)
-        return self.c0 + self.c1 * (k - self.start) / self.length
+        b = self.basis()
+        return self.c0 + (self.c1 * b[0] + self.c2 * b[1] if self.omega else self.c1 * b[0])
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +91,7 @@ class SparseTaps:
 
     @property
     def n_terms(self) -> int:
-        """Operations per sample: sparse taps plus two per segment."""
+        """Terms per sample: sparse taps plus two per segment (running sums)."""
         return int(self.index.size) + 2 * len(self.segments)
 
     def dense(self) -> np.ndarray:
@@ -93,18 +107,20 @@ class SparseTaps:
         return float(self.weight.sum()) + sum(float(g.weights().sum()) for g in self.segments)
 
 
-def _fit(k: np.ndarray, w: np.ndarray, degree: int, scale: float) -> Segment | None:
-    """The line (or constant) through the taps ``w`` at samples ``k``, if it fits to FIT_TOL."""
+def _fit(k: np.ndarray, w: np.ndarray, degree: int, scale: float, omega: float = 0.0) -> Segment | None:
+    """The constant, line (degree 0, 1) or constant plus sinusoid of ``omega`` (degree -1) through the
+    taps ``w`` at samples ``k``, if it fits to FIT_TOL."""
     s, e = int(k[0]), int(k[-1])
-    L = max(e - s, 1)
-    x = (k - s) / L
     if degree == 0:
-        c0, c1 = float(np.mean(w)), 0.0
+        g = Segment(s, e, float(np.mean(w)))
     else:
-        c1, c0 = (float(c) for c in np.polyfit(x, w, 1))
-    if np.max(np.abs(c0 + c1 * x - w)) > FIT_TOL * scale:
+        probe = Segment(s, e, 0.0, omega=omega if degree < 0 else 0.0)
+        X = np.vstack([np.ones(k.size), probe.basis()]).T
+        c = np.linalg.lstsq(X, w, rcond=None)[0]
+        g = Segment(s, e, float(c[0]), float(c[1]), float(c[2]) if degree < 0 else 0.0, probe.omega)
+    if np.max(np.abs(g.weights() - w)) > FIT_TOL * scale:
         return None
-    return Segment(s, e, c0, c1)
+    return g
 
 
 def sparse_from_parts(entries: list[tuple[int, float]], parts: list[tuple[int, np.ndarray, object, float]],
@@ -131,7 +147,7 @@ def sparse_from_parts(entries: list[tuple[int, float]], parts: list[tuple[int, n
                 if hi - lo + 1 < MIN_SEGMENT:
                     continue
                 k = np.arange(lo, hi + 1)
-                g = _fit(k, w[k - k0], _DEGREE[kernels[0].shape], scale)
+                g = _fit(k, w[k - k0], _DEGREE[kernels[0].shape], scale, 2.0 * math.pi * Ts / kernels[0].T)
                 if g is not None:
                     segs.append(g)
                     used[k - k0] = True
@@ -275,11 +291,17 @@ class SparseEngine:
         self.ring = np.full(self.size, hist)
         self.n = 0
         self.M = [self._exact(g, -1) for g in self.sp.segments]
+        self._rot = [complex(np.exp(1j * g.omega)) for g in self.sp.segments]
+        self._rot_end = [complex(np.exp(1j * g.omega * (g.stop - g.start + 1))) for g in self.sp.segments]
+        self._zrot: list[Any] = [None] * len(self.sp.segments)
 
-    def _exact(self, g: Segment, n: int) -> tuple[float, float]:
+    def _exact(self, g: Segment, n: int) -> tuple[float, Any]:
+        """``(M0, M1)`` (``M1`` complex, the rotating sum, for a sinusoidal segment) summed exactly."""
         vals = self.ring[(n - np.arange(g.start, g.stop + 1)) & self.mask]
-        x = (np.arange(g.start, g.stop + 1) - g.start) / g.length
-        return math.fsum(vals), (math.fsum(x * vals) if g.c1 != 0.0 else 0.0)
+        b = g.basis()
+        if g.omega:
+            return math.fsum(vals), complex(math.fsum(b[0] * vals), math.fsum(b[1] * vals))
+        return math.fsum(vals), (math.fsum(b[0] * vals) if g.c1 != 0.0 else 0.0)
 
     def _segments(self, n0: int, B: int) -> np.ndarray:
         """Sum of the segments' outputs for samples ``n0 .. n0 + B - 1`` (ring holds what they read)."""
@@ -295,7 +317,12 @@ class SparseEngine:
                     continue
                 if a in cut:  # exact resynchronisation at an absolute multiple of `resync`
                     m0, m1 = self._exact(g, n0 + a)
-                    M0[a], M1[a] = m0, m1
+                    M0[a] = m0
+                    if g.omega:
+                        M1[a] = g.c1 * m1.real + g.c2 * m1.imag
+                        self._zrot[gi] = None  # restart the rotation from the exact sum
+                    else:
+                        M1[a] = m1
                     a += 1
                     if a == b:
                         continue
@@ -303,14 +330,21 @@ class SparseEngine:
                 xs = self.ring[(p - g.start) & self.mask]
                 xe = self.ring[(p - g.stop - 1) & self.mask]
                 M0[a:b] = np.cumsum(np.concatenate(([m0], xs - xe)))[1:]
-                if g.c1 != 0.0:
+                if g.omega:  # Mc[n] = r Mc[n-1] + x[n-s] - r^(L+1) x[n-1-e]; the state is lfilter's own
+                    r = self._rot[gi]
+                    u = xs - self._rot_end[gi] * xe
+                    zi = self._zrot[gi] if self._zrot[gi] is not None else np.array([r * m1])
+                    Mc, self._zrot[gi] = signal.lfilter([1.0], [1.0, -r], u, zi=zi)
+                    M1[a:b] = g.c1 * Mc.real + g.c2 * Mc.imag
+                    m1 = Mc[-1]
+                elif g.c1 != 0.0:
                     prev = np.concatenate(([m0], M0[a: b - 1]))
                     M1[a:b] = np.cumsum(np.concatenate(([m1], (prev - xe) / g.length - xe)))[1:]
                 else:
                     M1[a:b] = 0.0
                 m0, m1 = float(M0[b - 1]), float(M1[b - 1])
             self.M[gi] = (m0, m1)
-            y = y + (g.c0 * M0 + g.c1 * M1)
+            y = y + (g.c0 * M0 + M1) if g.omega else y + (g.c0 * M0 + g.c1 * M1)
         return y
 
     def _delayed(self, n0: int, B: int) -> np.ndarray:
