@@ -46,6 +46,8 @@ _DEGREE = {"uniform": 0, "decreasing": 1, "triangular": 1, "cosine": -1}  # -1: 
 #: |spectral radius - 1| below this is "marginal" (zeros on the unit circle to rounding).
 MARGINAL_TOL = 1e-9
 _ROOTS_MAX = 400  # up to this degree the zeros of S_d come from np.roots; above by winding numbers
+_FFT_MAX = 1 << 22  # finest grid on a circle (2 pi / 2^22 = 1.5e-6 between points)
+_RESOLUTION = 8 * 2 * math.pi / _FFT_MAX  # 1.2e-5: closer to a zero than a few grid steps, the phase is not followed
 
 
 @dataclass(frozen=True)
@@ -180,6 +182,7 @@ class InverseStability(NamedTuple):
     verdict: str              #: "stable", "marginal" (zeros on |z| = 1 to MARGINAL_TOL) or "unstable"
     spectral_radius: float    #: largest |zero| of S_d(z) = sum_k w_k z^-k
     sample_rate: float
+    resolution: float = 0.0   #: the radius is known to this (nonzero where the FFT grid limits it)
 
     @property
     def decay_per_second(self) -> float:
@@ -187,7 +190,8 @@ class InverseStability(NamedTuple):
         return math.log(self.spectral_radius) * self.sample_rate if self.spectral_radius > 0 else -math.inf
 
     def __str__(self) -> str:
-        return (f"inverse {self.verdict}: spectral radius {self.spectral_radius:.12g} at {self.sample_rate:g} Hz "
+        res = f" +- {self.resolution:.1g}" if self.resolution else ""
+        return (f"inverse {self.verdict}: spectral radius {self.spectral_radius:.12g}{res} at {self.sample_rate:g} Hz "
                 f"(decay {self.decay_per_second:.4g} 1/s)")
 
 
@@ -195,7 +199,7 @@ def _outside(w: np.ndarray, r: float) -> int | None:
     """Zeros of ``sum_k w_k z^-k`` with ``|z| > r`` (winding number on ``|z| = r``), None if unresolved.
 
     The FFT grid is refined until the phase moves by less than pi/4 between points
-    (up to 2^24 points); a zero at rounding distance from the circle is unresolved.
+    (up to :data:`_FFT_MAX` points); a zero at rounding distance from the circle is unresolved.
     """
     K = w.size - 1
     with np.errstate(over="ignore", under="ignore"):
@@ -203,7 +207,7 @@ def _outside(w: np.ndarray, r: float) -> int | None:
     if not np.all(np.isfinite(a)):
         return None
     n = 1 << max(12, int(math.ceil(math.log2(8 * (K + 1)))))
-    while n <= 1 << 24:
+    while n <= _FFT_MAX:
         f = np.fft.fft(a, n)
         if np.min(np.abs(f)) <= 1e-13 * np.sum(np.abs(a)):
             return None
@@ -218,10 +222,13 @@ def _outside(w: np.ndarray, r: float) -> int | None:
 def inverse_stability(taps: np.ndarray, sample_rate: float) -> InverseStability:
     """Spectral radius of ``1 / S_d(z)`` for the dense FIR taps ``w_0 .. w_K`` (``w_0 != 0``).
 
-    Up to degree 400 the zeros come from ``np.roots``; above, the radius is
-    bracketed by winding numbers of ``S_d`` on circles ``|z| = r`` (FFT, bisection
-    to 1e-12 relative, or until a circle passes closer to a zero than the finest
-    grid resolves: then to about ``1e-6``, enough for the verdict away from 1).
+    Up to degree 400 the zeros come from ``np.roots``.  Above (long shapers at high
+    rates) the radius is bracketed by winding numbers of ``S_d`` on circles ``|z| = r``
+    (FFT; bisection from the geometric mean of the zero moduli to 1e-9 relative) until
+    a circle passes closer to a zero than the finest grid resolves (``resolution``
+    1.2e-5, a few steps of a 2^22-point grid).  Zeros that close to the unit circle
+    (an inverse that forgets slower than about ``1.2e-5 fs`` per second, e.g. a
+    0.05 Hz mode at 10 kHz) give the verdict "marginal".
 
     >>> round(inverse_stability(np.array([0.5, 0.0, 0.5]), 100.0).spectral_radius, 12)   # ZV, zeta = 0
     1.0
@@ -236,23 +243,34 @@ def inverse_stability(taps: np.ndarray, sample_rate: float) -> InverseStability:
     if w.size - 1 <= _ROOTS_MAX:
         rho = float(np.max(np.abs(np.roots(w))))
     else:
-        lo, hi = 0.0, 1.0 + float(np.sum(np.abs(w[1:])) / abs(w[0]))  # Cauchy bound: every zero below hi
-        lo = max(lo, math.exp(-600.0 / (w.size - 1)))                  # keep r^-K in the float range
-        if _outside(w, lo) == 0:
-            hi = lo
-        for _ in range(80):
-            if hi - lo <= 1e-12 * hi:
-                break
+        K = w.size - 1
+        # the product of the K zero moduli is |w_K / w_0|: the largest is at least their geometric mean
+        lo = max(math.exp((math.log(abs(w[-1])) - math.log(abs(w[0]))) / K), math.exp(-600.0 / K))
+        hi = 1.0 + float(np.sum(np.abs(w[1:])) / abs(w[0]))        # Cauchy bound: every zero below it
+        at_one = _outside(w, 1.0)
+        res = 0.0
+        if at_one is None:   # a zero on the unit circle to the grid's resolution: marginal for this filter
+            lo = hi = 1.0
+            res = _RESOLUTION
+        elif at_one == 0:
+            hi = 1.0
+        else:
+            lo = max(lo, 1.0)
+        while hi - lo > 1e-9 * hi:
             mid = 0.5 * (lo + hi)
             out = _outside(w, mid)
-            if out is None:   # a zero on (or at rounding distance from) the circle |z| = mid
+            if out is None:   # a zero on (or closer than the grid resolves to) the circle |z| = mid
                 lo = hi = mid
+                res = _RESOLUTION
                 break
             if out == 0:
                 hi = mid
             else:
                 lo = mid
         rho = hi
+        tol = max(MARGINAL_TOL, res)
+        verdict = "marginal" if abs(rho - 1.0) <= tol else ("stable" if rho < 1.0 else "unstable")
+        return InverseStability(verdict, rho, sample_rate, res)
     verdict = "marginal" if abs(rho - 1.0) <= MARGINAL_TOL else ("stable" if rho < 1.0 else "unstable")
     return InverseStability(verdict, rho, sample_rate)
 
