@@ -38,7 +38,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..modes import Mode
-from .base import MAX_IMPULSES, Shaper
+from .base import _T_MAX, MAX_IMPULSES, Shaper, check_resolution
 
 __all__ = ["zplane_shaper", "zplane_taps", "sampled_pole", "highest_multiplicity", "OrderChoice",
            "SAMPLED_KINDS", "multiplicity_of", "GAIN_WARN"]
@@ -48,6 +48,8 @@ SAMPLED_KINDS = ("zv", "zvd", "zvdd", "zvddd", "zvdk")
 _ALIAS_TOL = 1e-12  # Omega T may exceed pi by this relative rounding
 #: Above this tap gain ``sum |A_k|`` a design warns (the taps alternate in sign and amplify the command).
 GAIN_WARN = 1e3
+MAX_STRIDE = 10**9  #: most samples between the taps of a factor
+MAX_MULTIPLICITY = 1000  #: highest zero multiplicity (ZVD^999); the taps of one factor cost m^2 to expand
 _GRID_COS = 1e-15  # |cos(n Omega T)| below this is the rounding of cos(pi / 2)
 
 
@@ -107,8 +109,12 @@ def _stride(mode: Mode, T: float, stride: Any) -> int:
     if isinstance(stride, str):
         v.choice(stride, "stride", ("positive",))
         theta = _check_period(mode, T)
-        return max(1, math.ceil(math.pi / (2.0 * theta) * (1.0 - 1e-12)))  # smallest n: n theta >= pi / 2
-    return v.integer(stride, "stride", 1)
+        n = math.pi / (2.0 * theta)   # smallest n: n theta >= pi / 2
+        if not n <= MAX_STRIDE:
+            raise ValueError(f"sample_period = {T:.4g} s is too short for stride='positive' on the mode at "
+                             f"{mode.freq_hz:.6g} Hz: the stride would be {n:.4g} samples (at most {MAX_STRIDE:g})")
+        return max(1, math.ceil(n * (1.0 - 1e-12)))
+    return v.integer_in_range(stride, "stride", 1, MAX_STRIDE)
 
 
 def zplane_taps(mode: Mode, sample_period: float, multiplicity: int = 1, stride: int = 1) -> np.ndarray:
@@ -122,7 +128,7 @@ def zplane_taps(mode: Mode, sample_period: float, multiplicity: int = 1, stride:
     [0.5, 0.0, 0.5]
     """
     T = v.positive(sample_period, "sample_period")
-    m = v.integer(multiplicity, "multiplicity", 1)
+    m = v.integer_in_range(multiplicity, "multiplicity", 1, MAX_MULTIPLICITY)
     n = v.integer(stride, "stride", 1)
     theta = _check_period(mode, T)
     rn = math.exp(-mode.decay * T * n)                      # |z_p|^n
@@ -203,9 +209,16 @@ def zplane_shaper(modes: Mode | Sequence[Mode], sample_period: float, multiplici
     if len(strides) != len(ms):
         raise ValueError(f"stride must be one value or one per mode ({len(ms)}), got {len(strides)}")
     ns = [_stride(m, T, s) for m, s in zip(ms, strides)]
-    if 2 * mult + 1 > MAX_IMPULSES:
-        raise ValueError(f"multiplicity must be <= {(MAX_IMPULSES - 1) // 2} ({MAX_IMPULSES} taps), got {mult}")
+    if mult > MAX_MULTIPLICITY:
+        raise ValueError(f"multiplicity must be <= {MAX_MULTIPLICITY}, got {mult}")
+    duration = 2 * mult * T * sum(ns)
+    check_resolution(T * min(ns), duration, f"a z-plane shaper at sample_period = {T:g} s")
+    if not duration <= _T_MAX:
+        raise ValueError(f"sample_period = {T:g} s with multiplicity {mult} and stride {ns} lasts {duration:.4g} s, "
+                         f"more than {_T_MAX:g} s")
     idx, taps = _product([(np.arange(2 * mult + 1) * n, zplane_taps(m, T, mult, n)) for m, n in zip(ms, ns)])
+    if not np.all(np.isfinite(taps)):
+        raise ValueError(f"multiplicity = {mult} is too high at sample_period = {T:g} s: the taps overflow the float range")
     keep = taps != 0.0
     gain = float(np.abs(taps).sum())
     if gain > GAIN_WARN:
@@ -253,9 +266,13 @@ def highest_multiplicity(modes: Mode | Sequence[Mode], actuator_period: float, r
     rise = v.positive(rise_time, "rise_time")
     ns = tuple(_stride(m, T, stride) for m in ms)
     per_m = 2.0 * T * sum(ns)
-    m = int(math.floor(rise / per_m * (1.0 + 1e-12)))
-    if m < 1:
-        raise ValueError(f"rise_time = {rise:g} s is shorter than the shortest z-plane shaper at actuator_period = "
-                         f"{T:g} s ({per_m:.6g} s, multiplicity 1, stride {list(ns)}); rise_time must be >= {per_m:.6g} s")
+    m_float = rise / per_m * (1.0 + 1e-12)
+    if m_float < 1.0:
+        raise ValueError(f"rise_time = {rise:g} s is shorter than the shortest z-plane shaper for the mode(s) at "
+                         f"{', '.join(f'{x.freq_hz:.6g} Hz' for x in ms)} with actuator_period = {T:g} s ({per_m:.6g} s, "
+                         f"multiplicity 1, stride {list(ns)}); rise_time must be >= {per_m:.6g} s")
+    # the product of the modes' factors has at most (2m + 1)^len(modes) taps
+    m_cap = min(MAX_MULTIPLICITY, max(1, int((MAX_IMPULSES ** (1.0 / len(ms)) - 1.0) // 2)))
+    m = min(int(m_float), m_cap)
     S = zplane_shaper(ms, T, m, list(ns), name=f"zvd{m - 1}" if m > 1 else "zv")
     return OrderChoice(m, S, m * per_m, T, ns)

@@ -17,6 +17,7 @@ the continuous spectrum.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -29,9 +30,10 @@ from ..shapers.base import Shaper
 from .discrete import discretize_ss
 from .streaming import discretize
 
-__all__ = ["SampledLoop", "sampled_loop", "CONTROLLER_METHODS"]
+__all__ = ["SampledLoop", "sampled_loop", "CONTROLLER_METHODS", "MAX_STATES"]
 
 CONTROLLER_METHODS = ("bilinear", "zoh", "foh")
+MAX_STATES = 200_000  #: most states (shaper taps + computation delay + blocks) a sampled loop may have
 _DENSE_MAX = 1500  # up to this many states every pole by a dense eigensolver; above: the largest few
 _MARGINAL = 1e-9
 
@@ -67,7 +69,9 @@ class SampledLoop:
                  controller_method: str = "bilinear", fractional: str = "linear") -> None:
         v.instance_of(loop, Loop, "loop", "a posicast Loop")
         fs = v.positive(sample_rate, "sample_rate")
-        d = v.integer(computation_delay, "computation_delay", 0)
+        if not math.isfinite(1.0 / fs):
+            raise ValueError(f"sample_rate must be > {1.0 / MAX_STATES:g} Hz (its period must be finite), got {fs:g}")
+        d = v.integer_in_range(computation_delay, "computation_delay", 0, MAX_STATES)
         v.choice(controller_method, "controller_method", CONTROLLER_METHODS)
         arch = loop.architecture
         if arch not in ("feedforward", "control_action", "inverse_shaper"):
@@ -95,6 +99,9 @@ class SampledLoop:
         K = w.size - 1
         nc, ng = Ac.shape[0], Ag.shape[0]
         n = nc + ng + K + d
+        if n > MAX_STATES:
+            raise ValueError(f"the loop at sample_rate = {fs:g} Hz would have {n} states (the shaper's taps plus "
+                             f"computation_delay = {d}); at most {MAX_STATES}: use a lower sample_rate")
         ic, ig, ih, idl = 0, nc, nc + ng, nc + ng + K
         A = lil_matrix((n, n))
 

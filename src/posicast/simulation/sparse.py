@@ -35,6 +35,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy import signal
 
+from .. import _validate as v
+
 __all__ = ["Segment", "SparseTaps", "InverseStability", "SparseEngine", "inverse_stability", "sparse_from_parts"]
 
 #: Shortest run of kernel taps worth a running sum (shorter runs stay sparse taps).
@@ -235,9 +237,13 @@ def inverse_stability(taps: np.ndarray, sample_rate: float) -> InverseStability:
     >>> inverse_stability(np.array([0.5, 0.0, 0.5]), 100.0).verdict
     'marginal'
     """
-    w = np.trim_zeros(np.asarray(taps, dtype=float), "b")
+    w = v.strict_real_array(taps, "taps", allow_empty=True)
+    if w.ndim != 1:
+        raise ValueError(f"taps must be 1-D, got shape {w.shape}")
+    v.positive(sample_rate, "sample_rate")
+    w = np.trim_zeros(w, "b")
     if w.size == 0 or w[0] == 0.0:
-        raise ValueError("the inverse needs a nonzero undelayed tap w_0 (1/S is not causal)")
+        raise ValueError("taps must start with a nonzero undelayed tap w_0 (the inverse needs it: 1/S is not causal)")
     if w.size == 1:
         return InverseStability("stable", 0.0, sample_rate)
     if w.size - 1 <= _ROOTS_MAX:
