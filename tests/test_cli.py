@@ -211,3 +211,15 @@ def test_tune_structure_is_the_old_name_of_architecture(capsys):
     assert json.loads(captured.out) == new and new["architecture"] == "feedforward"
     assert "--structure is now --architecture" in captured.err
     assert main(argv + ["--structure", "feedforward", "--architecture", "feedforward"]) == 2
+
+
+def test_export_choices_match_the_exporter():
+    """The CLI spells out posicast.io.export's choices (its parser imports nothing): they must agree."""
+    from posicast.cli import _build_parser
+    from posicast.io.export import EXPORT_FORMATS, EXPORT_FORMS, EXPORT_PRECISIONS
+
+    sub = next(a for a in _build_parser()._actions if a.dest == "command").choices["export"]
+    choices = {a.dest: set(a.choices) for a in sub._actions if a.choices}
+    assert choices["format"] == set(EXPORT_FORMATS)
+    assert choices["form"] == set(EXPORT_FORMS)
+    assert choices["precision"] == set(EXPORT_PRECISIONS)

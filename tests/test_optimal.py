@@ -115,7 +115,7 @@ def test_optimal_shapers_are_ordinary_shapers():
     assert np.all(c.vibration <= 0.05 * (1 + 1e-6))
     data = json.loads(export_shaper(S, 2000.0))
     assert data["design"]["name"] == "si" and data["dc_gain"] == pytest.approx(1.0, abs=1e-12)
-    np.testing.assert_allclose(data["impulses"]["times"], S.times, rtol=1e-15)
+    np.testing.assert_allclose(data["design"]["impulses"]["times"], S.times, rtol=1e-15)
     y = pc.shape_signal(S, np.ones(2000), 1000.0)
     assert y[-1] == pytest.approx(1.0, abs=1e-12)
     both = S * design("zv", Mode(30.0, 0.0))

@@ -19,7 +19,8 @@ Systems (:mod:`posicast.core`)
     (``QuasiPolynomial(coeffs, delays)``, a ``(coeffs, delays)`` pair, ``.coeffs``).
 Shapers (:mod:`posicast.shapers`)
     ``design``, ``KINDS``, ``ZERO_VIBRATION_KINDS``, ``Shaper``, ``Kernel``, ``DistributedPart``,
-    ``shortest_shaper``, ``OptimalShaper``, ``Optimality`` (issue #17: SI, UM and limited-impulse shapers).
+    ``shortest_shaper``, ``OptimalShaper``, ``Optimality`` (issue #17: SI, UM and limited-impulse shapers),
+    ``zplane_shaper``, ``highest_multiplicity``, ``OrderChoice`` (z-plane shapers, seed 002 eq. 4-12).
 Spectra (:mod:`posicast.spectra`) -- each verb is also a method of every object
     ``roots``, ``poles``, ``zeros``, ``stability``, ``spectral_abscissa``, ``rightmost``,
     ``difference_spectrum``, ``Roots``.
@@ -29,13 +30,16 @@ Analysis (:mod:`posicast.analysis`)
     ``residual_vibration``, ``sensitivity_curve``, ``insensitivity``, ``SensitivityCurve``,
     ``Insensitivity``, ``sensitivity_plot``, ``impulse_plot``.
 Simulation (:mod:`posicast.simulation`)
-    ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``.
+    ``simulate``, ``SimulationResponse``, ``ShaperFilter``, ``shape_signal``, ``sampled_loop``,
+    ``SampledLoop`` (the loop's poles at the sample rate).
 Tuning (:mod:`posicast.tune`)
     ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
 QFT inner-loop model matching (:mod:`posicast.qft`, seed 003)
     ``PlantSet``, ``qft_design``, ``QFTResult``, ``percent_vibration``, ``model_matching``.
 Identification and printer calibration (:mod:`posicast.identification`)
     ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
+Export (:mod:`posicast.io`)
+    ``export_shaper`` (sparse or dense taps, forward or inverse, JSON or compilable C).
 Case studies
     :mod:`posicast.cases` (the seeds' plants, each with its source).
 
@@ -68,6 +72,7 @@ _PUBLIC: dict[str, str] = {
     "design": ".shapers", "KINDS": ".shapers", "ZERO_VIBRATION_KINDS": ".shapers", "Shaper": ".shapers",
     "Kernel": ".shapers", "DistributedPart": ".shapers",
     "shortest_shaper": ".shapers", "OptimalShaper": ".shapers", "Optimality": ".shapers",
+    "zplane_shaper": ".shapers", "highest_multiplicity": ".shapers", "OrderChoice": ".shapers",
     # spectra
     "roots": ".spectra", "poles": ".spectra", "zeros": ".spectra", "stability": ".spectra",
     "spectral_abscissa": ".spectra", "rightmost": ".spectra", "difference_spectrum": ".spectra",
@@ -80,7 +85,7 @@ _PUBLIC: dict[str, str] = {
     "impulse_plot": ".analysis",
     # simulation
     "simulate": ".simulation", "SimulationResponse": ".simulation", "ShaperFilter": ".simulation",
-    "shape_signal": ".simulation",
+    "shape_signal": ".simulation", "sampled_loop": ".simulation", "SampledLoop": ".simulation",
     # tuning
     "tune_pd": ".tune", "tune_pi": ".tune", "tune_pid": ".tune", "TuningResult": ".tune", "Region": ".tune",
     "Constraint": ".tune",
@@ -90,6 +95,8 @@ _PUBLIC: dict[str, str] = {
     # identification and calibration
     "identify": ".identification", "calibrate": ".identification", "Identification": ".identification",
     "Interval": ".identification", "Calibration": ".identification", "NoModeFound": ".identification",
+    # export
+    "export_shaper": ".io",
     # case studies
     "cases": ".cases",
 }
@@ -104,8 +111,9 @@ if TYPE_CHECKING:  # the same names, for type checkers and IDEs (never executed)
     from .modes import Mode
     from .qft import PlantSet, QFTResult, model_matching, percent_vibration, qft_design
     from .shapers import KINDS, ZERO_VIBRATION_KINDS, DistributedPart, Kernel, Shaper, design
-    from .shapers import Optimality, OptimalShaper, shortest_shaper
-    from .simulation import ShaperFilter, SimulationResponse, shape_signal, simulate
+    from .shapers import Optimality, OptimalShaper, OrderChoice, highest_multiplicity, shortest_shaper, zplane_shaper
+    from .io import export_shaper
+    from .simulation import SampledLoop, ShaperFilter, SimulationResponse, sampled_loop, shape_signal, simulate
     from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
     from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 
@@ -123,14 +131,16 @@ __all__ = [
     "QuasiPolynomial", "TransferFunction", "as_transfer", "delay", "Mode",
     "design", "KINDS", "ZERO_VIBRATION_KINDS", "Shaper", "Kernel", "DistributedPart",
     "shortest_shaper", "OptimalShaper", "Optimality",
+    "zplane_shaper", "highest_multiplicity", "OrderChoice",
     "roots", "poles", "zeros", "stability", "spectral_abscissa", "rightmost", "difference_spectrum", "Roots",
     "Loop", "feedforward", "control_action", "inverse_shaper",
     "residual_vibration", "sensitivity_curve", "insensitivity", "SensitivityCurve", "Insensitivity",
     "sensitivity_plot", "impulse_plot",
-    "simulate", "SimulationResponse", "ShaperFilter", "shape_signal",
+    "simulate", "SimulationResponse", "ShaperFilter", "shape_signal", "sampled_loop", "SampledLoop",
     "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
     "PlantSet", "qft_design", "QFTResult", "percent_vibration", "model_matching",
     "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
+    "export_shaper",
     "cases",
 ]
 

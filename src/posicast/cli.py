@@ -1,4 +1,5 @@
-"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``, ``qft``.
+"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``export``, ``identify``, ``calibrate``, ``tune``,
+``qft``.
 
 ``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
 (one line on stderr, no configuration printed).  Every error (bad argument,
@@ -82,6 +83,23 @@ def _build_parser() -> _Parser:
 
     sub.add_parser("kinds", help="list the shaper kinds")
 
+    x = sub.add_parser("export", help="export a shaper (or its inverse) for a controller as C or JSON")
+    x.add_argument("kind", help="shaper kind (see 'posicast kinds')")
+    _add_mode_args(x)
+    _add_param_args(x)
+    x.add_argument("--sample-rate", type=float, required=True, help="controller sample rate [Hz]")
+    x.add_argument("--zplane", action="store_true",
+                   help="design in the z plane at 1/sample-rate (zv/zvd/zvdd/zvddd/zvdk, seed 002 eq. 8)")
+    x.add_argument("--stride", default=None, help="with --zplane: samples between taps, or 'positive'")
+    # the choices are posicast.io.export's EXPORT_FORMATS/FORMS/PRECISIONS, spelled out so that building the
+    # parser imports nothing (tests/test_cli.py checks they agree)
+    x.add_argument("--format", choices=("json", "c"), default="c", help="c (default) or json")
+    x.add_argument("--form", choices=("sparse", "dense"), default="sparse", help="sparse taps (default) or dense")
+    x.add_argument("--precision", choices=("double", "float"), default="double", help="C type (default double)")
+    x.add_argument("--inverse", action="store_true", help="export 1/S (seed 000 eq. 19-20)")
+    x.add_argument("--name", default="shaper", help="C identifier for the arrays and functions")
+    x.add_argument("--output", help="write to this file (.h, .c, .json, .txt) instead of standard output")
+
     i = sub.add_parser("identify", help="identify lightly damped modes in a CSV or Klipper file")
     i.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
     i.add_argument("--input", help="input column (omit for output-only data)")
@@ -150,7 +168,7 @@ def _build_parser() -> _Parser:
 
 # Subcommand -> module of posicast.commands whose run(args) it calls (imported when it runs).
 _COMMANDS = {
-    "design": "shaping", "kinds": "shaping", "sensitivity": "shaping",
+    "design": "shaping", "kinds": "shaping", "sensitivity": "shaping", "export": "export",
     "identify": "identification", "calibrate": "identification",
     "tune": "tuning",
     "qft": "qft",

@@ -26,10 +26,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.command == "sensitivity":  # the tolerance before any design work
         v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
-    mode = _mode(args)
+    mode = mode_of(args)
     if args.command == "design":
         kind = args.kind.lower()
-        S = registry.design(kind, mode, **_params(args, kind))
+        S = registry.design(kind, mode, **shaper_params(args, kind))
         if args.json:
             print(json.dumps(S.to_dict(), indent=2))
         else:
@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     # sensitivity: design, analyse, draw; write last
     pyplot()  # the Agg backend before sensitivity_plot draws
-    shapers = [registry.design(k.lower(), mode, **_params(args, k.lower())) for k in args.kinds]
+    shapers = [registry.design(k.lower(), mode, **shaper_params(args, k.lower())) for k in args.kinds]
     ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
     lines = []
     for S in shapers:
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
+def shaper_params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
     accepted = registry.KINDS[kind].params if kind in registry.KINDS else {}
     out = {}
     for name in ("vtol", "k", "n", "m", "T", "method"):
@@ -65,7 +65,7 @@ def _params(args: argparse.Namespace, kind: str) -> dict[str, Any]:
     return out
 
 
-def _mode(args: argparse.Namespace) -> Mode:
+def mode_of(args: argparse.Namespace) -> Mode:
     if args.omega is not None:
         return Mode(args.omega, args.zeta)
     return Mode.from_hz(args.freq_hz, args.zeta)

@@ -17,6 +17,7 @@ from .distributed import distributed_zv_part, notch_continuous
 from .ei import ei_exact, ei_fit, ei_multi_hump
 from .negative import um_shaper, um_si_shaper
 from .optimal import si_shaper
+from .sampled import SAMPLED_KINDS, multiplicity_of, zplane_shaper
 
 __all__ = ["design", "KINDS", "ZERO_VIBRATION_KINDS"]
 
@@ -158,6 +159,20 @@ def _as_mode(mode: Any) -> Mode:
                     + (f" of length {len(mode)}" if isinstance(mode, (tuple, list, np.ndarray)) else ""))
 
 
+def _design_sampled(key: str, mode: Any, params: dict[str, Any]) -> Shaper:
+    """``design(kind, mode, sample_period=T[, stride=n])``: the z-plane ZV family (seed 002 eq. 4-12)."""
+    if key not in SAMPLED_KINDS:
+        raise ValueError(f"sample_period is supported for kinds {', '.join(SAMPLED_KINDS)} (zeros on the sampled "
+                         f"pole, seed 002 eq. 8); for {key!r} design the continuous shaper and discretise it "
+                         "(posicast.simulation.streaming.discretize, which reports the residual)")
+    T, stride = params.pop("sample_period"), params.pop("stride", 1)
+    unknown = set(params) - set(KINDS[key].params)
+    if unknown:
+        raise TypeError(f"kind {key!r} takes no parameter {sorted(unknown)[0]!r} with sample_period "
+                        f"(parameters: {', '.join(KINDS[key].params) or 'none'}, stride)")
+    return zplane_shaper(mode, T, multiplicity_of(key, params.get("k", 1)), stride, name=key)
+
+
 def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper:
     """Design a shaper for one damped mode.
 
@@ -170,7 +185,11 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
         The mode to cancel (``si``: also a sequence of Modes).
     **params
         ``k`` (zvdk, integer >= 0, default 1); ``vtol`` (ei/ei2/ei3, in (0, 1),
-        default 0.05); ``method`` (ei: ``"exact"`` (hump of height vtol exactly at the
+        default 0.05); ``sample_period`` (zv, zvd, zvdd, zvddd, zvdk: the z-plane design of
+        seed 002 eq. 8, impulses on the grid ``k T``, zeros of multiplicity 1, 2, 3, 4, ``k + 1``
+        on the sampled pole ``exp(p T)``; ``mode`` may then be a sequence of modes) with
+        ``stride`` (samples between taps, or ``"positive"``; see
+        :func:`posicast.shapers.sampled.zplane_shaper`); ``method`` (ei: ``"exact"`` (hump of height vtol exactly at the
         model frequency: the shaper ``ei_exact(mode, vtol)`` returns), ``"singhose"``
         (t3 = T_d, ``ei_exact(..., definition="singhose")``) or ``"fit"``); ``n`` (mis_zv,
         integer >= 2, default 3); ``n``, ``m`` (mis_zvd, integers >= 2, default
@@ -212,6 +231,9 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
     if key not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}")
     spec = KINDS[key]
+    if params.get("sample_period") is not None:
+        return _design_sampled(key, mode, dict(params))
+    params.pop("sample_period", None)
     several = spec.multi_mode and isinstance(mode, (list, tuple)) and bool(mode) and isinstance(mode[0], Mode)
     m = tuple(mode) if several else _as_mode(mode)
     unknown = set(params) - set(spec.params)

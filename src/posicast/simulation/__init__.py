@@ -2,6 +2,8 @@
 
 from .engine import DivergenceWarning, simulate
 from .response import SimulationResponse
+from .sampled_spectrum import SampledLoop, sampled_loop
+from .sparse import InverseStability, SparseTaps, inverse_stability
 from .streaming import FRACTIONAL, DiscreteShaper, ShaperFilter, discretize, shape_signal, shortest_delay
 
 __all__ = [
@@ -14,4 +16,9 @@ __all__ = [
     "DiscreteShaper",
     "shortest_delay",
     "FRACTIONAL",
+    "SampledLoop",
+    "sampled_loop",
+    "SparseTaps",
+    "InverseStability",
+    "inverse_stability",
 ]

@@ -40,7 +40,10 @@ import numpy as np
 from scipy import signal
 
 from posicast import _validate as v
-from posicast.shapers.base import DistributedPart, Shaper
+from posicast.shapers.base import Shaper
+
+from .sparse import InverseStability, SparseEngine, SparseTaps, inverse_stability, sparse_from_parts
+from .taps import GRID_TOL, impulse_taps, iir_section, part_taps, prewarped_step
 
 __all__ = [
     "DiscreteShaper",
@@ -54,8 +57,6 @@ __all__ = [
 
 FRACTIONAL = ("linear", "lagrange3", "round")
 
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(16)
-_GRID_TOL = 1e-9  # a delay within this fraction of a sample of the grid sits on the grid
 # Most FIR taps a discretisation may produce (80 MB of taps; the filter state is as long).
 MAX_TAPS = 10_000_000
 
@@ -79,6 +80,9 @@ class DiscreteShaper:
         FIR weights ``w_k``, ``k = 0 .. N-1``.
     b, a : ndarray or None
         The IIR section.
+    sparse : SparseTaps
+        The same FIR part as sparse taps ``(index, weight)`` plus running-sum segments
+        (:mod:`posicast.simulation.sparse`): what :class:`ShaperFilter` runs.
     """
 
     shaper: Shaper
@@ -87,6 +91,19 @@ class DiscreteShaper:
     taps: np.ndarray
     b: np.ndarray | None = None
     a: np.ndarray | None = None
+    sparse: SparseTaps | None = None
+
+    def __post_init__(self) -> None:
+        if self.sparse is None:  # built from bare taps: every nonzero tap is a sparse one
+            k = np.flatnonzero(self.taps)
+            object.__setattr__(self, "sparse", SparseTaps(k.astype(np.int64), np.asarray(self.taps, float)[k]))
+
+    def inverse_stability(self) -> InverseStability:
+        """Stability of the inverse ``1 / S_d(z)`` on this grid (the zeros of ``S_d``), see
+        :func:`posicast.simulation.sparse.inverse_stability`."""
+        if self.b is not None:
+            raise ValueError(f"the inverse of {self.shaper.name!r} is not a delay recursion (it has an IIR part)")
+        return inverse_stability(self.taps, self.sample_rate)
 
     @property
     def sample_period(self) -> float:
@@ -103,6 +120,25 @@ class DiscreteShaper:
         if self.b is not None and self.a is not None:
             g += float(self.b.sum() / self.a.sum())
         return g
+
+    @property
+    def residual(self) -> float:
+        """Residual vibration left by the discretisation: ``max |S_d(exp(p Ts))| / |S_d(1)|`` over the design modes.
+
+        0 for a z-plane design on this grid (seed 002 eq. 8); for a continuous design
+        whose delays fall between samples the fractional taps leave this much (``nan``
+        for a shaper without modes).
+
+        >>> import posicast as pc
+        >>> m = pc.Mode.from_hz(28.0, 0.05)
+        >>> round(discretize(pc.design("zv", m), 100.0).residual, 4)     # seed 002's mode at 10 ms
+        0.1277
+        """
+        if not self.shaper.modes:
+            return math.nan
+        dc = abs(complex(self._eval(np.array([1.0 + 0j]))[0]))
+        vals = [abs(complex(self._eval(np.array([np.exp(m.pole * self.sample_period)]))[0])) for m in self.shaper.modes]
+        return max(vals) / dc if dc > 0 else math.inf
 
     def __call__(self, z: Any) -> Any:
         """The discrete transfer function ``S_d(z)`` at complex ``z`` (``z = exp(s Ts)``, nonzero, finite).
@@ -143,7 +179,7 @@ class DiscreteShaper:
         iir = f", IIR order {self.a.size - 1}" if self.a is not None else ""
         return (
             f"DiscreteShaper({self.shaper.name!r}, {self.sample_rate:g} Hz, {self.fractional}, "
-            f"{self.n_taps} taps{iir})"
+            f"{self.n_taps} taps{iir}, residual {self.residual:.3g})"
         )
 
 
@@ -195,146 +231,12 @@ def _check_rate(S: Shaper, sample_rate: Any) -> float:
                 f"(above the Nyquist frequency {nyq:g} Hz); sample_rate must be > {2.0 * m.freq_hz:.6g} Hz"
             )
     d = shortest_delay(S)
-    if d * fs < 1.0 - _GRID_TOL:
+    if d * fs < 1.0 - GRID_TOL:
         raise ValueError(
             f"sample_rate = {fs:g} Hz is too low for this shaper: its shortest delay {d:.6g} s is below one "
             f"sample ({1.0 / fs:.6g} s); sample_rate must be >= {1.0 / d:.6g} Hz"
         )
     return fs
-
-
-# ---------------------------------------------------------------------- taps
-def _split(x: float) -> tuple[int, float]:
-    """``x = n + f`` with integer ``n`` and ``0 <= f < 1`` (``f`` snapped to 0 near the grid)."""
-    n = math.floor(x)
-    f = x - n
-    if f > 1.0 - _GRID_TOL:
-        return n + 1, 0.0
-    if f < _GRID_TOL:
-        return n, 0.0
-    return n, f
-
-
-def _impulse_taps(x: float, amp: float, fractional: str) -> list[tuple[int, float]]:
-    if fractional == "round":
-        return [(int(math.floor(x + 0.5)), amp)]
-    n, f = _split(x)
-    if f == 0.0:
-        return [(n, amp)]
-    if fractional == "linear":
-        return [(n, amp * (1.0 - f)), (n + 1, amp * f)]
-    # cubic Lagrange interpolation through the nodes n-1, n, n+1, n+2 evaluated at n + f
-    h = (
-        -f * (f - 1.0) * (f - 2.0) / 6.0,
-        (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0,
-        -(f + 1.0) * f * (f - 2.0) / 2.0,
-        (f + 1.0) * f * (f - 1.0) / 6.0,
-    )
-    if n - 1 < 0:  # unreachable after _check_rate (delays >= one sample)
-        raise ValueError("lagrange3 needs every delay between samples to be >= one sample")
-    return [(n - 1 + j, amp * hj) for j, hj in enumerate(h)]
-
-
-def _part_breakpoints(p: DistributedPart) -> list[float]:
-    pts = [p.delay, p.end]
-    if len(p.kernels) == 1 and p.kernels[0].shape == "triangular":
-        pts.append(p.delay + p.kernels[0].T / 2.0)
-    return pts
-
-
-def _part_taps(p: DistributedPart, Ts: float, fractional: str) -> tuple[int, np.ndarray]:
-    """``(k0, w)``: taps ``w[j]`` at sample ``k0 + j`` for one distributed part."""
-    if len(p.kernels) > 1:
-        # A convolution of kernels (from S1 * S2): the product of the discretised factors (each
-        # kernel integrated exactly, the delay as a fractional-delay impulse), which keeps each
-        # factor's accuracy at the pole instead of that of a numerically convolved density.
-        start, w = 0, np.array([1.0])
-        for k in p.kernels:
-            k0_i, w_i = _part_taps(DistributedPart(1.0, 0.0, (k,)), Ts, fractional)
-            start += k0_i
-            w = np.convolve(w, w_i)
-        imp = _impulse_taps(p.delay / Ts, p.weight, fractional)
-        i0 = min(i for i, _ in imp)
-        d = np.zeros(max(i for i, _ in imp) - i0 + 1)
-        for i, a in imp:
-            d[i - i0] += a
-        return start + i0, np.convolve(w, d)
-    a, b = p.delay / Ts, p.end / Ts  # support in samples
-    if fractional == "round":  # box [k - 1/2, k + 1/2)
-        k0 = int(math.floor(a + 0.5))
-        k1 = int(math.floor(b + 0.5))
-        edges = np.arange(k0, k1 + 2) - 0.5
-    else:  # hat on [k - 1, k + 1]
-        k0 = int(math.floor(a))
-        k1 = int(math.ceil(b))
-        edges = np.arange(k0, k1 + 1, dtype=float)
-    inner = [x / Ts for x in _part_breakpoints(p)]
-    knots = np.unique(np.clip(np.concatenate([edges, inner]), a, b))
-    lo, hi = knots[:-1], knots[1:]
-    keep = hi > lo
-    lo, hi = lo[keep], hi[keep]
-    mid, half = (lo + hi) / 2.0, (hi - lo) / 2.0
-    xs = mid[:, None] + half[:, None] * _GL_X[None, :]  # nodes (in samples)
-    ws = half[:, None] * _GL_W[None, :]
-    dens = p.density(xs * Ts) * Ts  # density per sample
-    n_taps = (k1 - k0 + 2) if fractional == "round" else (k1 - k0 + 1)
-    w = np.zeros(n_taps)
-    if fractional == "round":
-        idx = np.floor(xs + 0.5).astype(int) - k0
-        np.add.at(w, idx.ravel(), (dens * ws).ravel())
-    elif fractional == "linear":
-        # every sub-interval lies within one grid cell: use the cell of its midpoint
-        left = np.broadcast_to(np.floor(mid).astype(int)[:, None], xs.shape)
-        frac = xs - left
-        np.add.at(w, (left - k0).ravel(), (dens * ws * (1.0 - frac)).ravel())
-        np.add.at(w, (left + 1 - k0).ravel(), (dens * ws * frac).ravel())
-    else:  # lagrange3: the density against the cubic Lagrange interpolation kernel
-        cell = np.broadcast_to(np.floor(mid).astype(int)[:, None], xs.shape)
-        first = np.maximum(cell - 1, 0)  # nodes first .. first + 3 (one-sided at the start: causal)
-        w = np.zeros(n_taps + 3)
-        base = (dens * ws).ravel()
-        x_loc = (xs - first).ravel()
-        for j in range(4):
-            lj = np.ones_like(x_loc)
-            for m in range(4):
-                if m != j:
-                    lj *= (x_loc - m) / (j - m)
-            np.add.at(w, (first + j - k0).ravel() + 1, base * lj)
-        k0 -= 1  # w[0] is sample k0 - 1 (zero unless the part starts past one sample)
-        if k0 < 0:
-            w, k0 = w[1:], 0
-    total = w.sum()
-    if total != 0.0:  # remove quadrature / numerical-convolution error: taps sum to the weight
-        w *= p.weight / total
-    return k0, w
-
-
-def prewarped_step(S: Shaper, Ts: float) -> float:
-    """The step of the plain bilinear transform that is Tustin prewarped at the shaper's (first) mode.
-
-    ``s = (w0 / tan(w0 Ts / 2)) (z - 1) / (z + 1)`` is the bilinear transform with
-    the step ``2 tan(w0 Ts / 2) / w0``; ``Ts`` itself for a shaper without modes.
-    """
-    if not S.modes:
-        return Ts
-    w0 = S.modes[0].omega
-    return 2.0 * math.tan(w0 * Ts / 2.0) / w0
-
-
-def _iir(S: Shaper, Ts: float) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
-    if S.continuous is None:
-        return None, None
-    try:
-        ct = S.continuous.to_scipy()
-    except ValueError as exc:
-        raise ValueError(
-            "S.continuous contains delays (e.g. a product of a delay shaper and an IIR notch); only a "
-            "delay-free IIR part can be discretised"
-        ) from exc
-    bz, az, _ = signal.cont2discrete((ct.num, ct.den), prewarped_step(S, Ts), method="bilinear")
-    bz = np.atleast_1d(np.asarray(bz, dtype=float).ravel())
-    az = np.atleast_1d(np.asarray(az, dtype=float).ravel())
-    return bz / az[0], az / az[0]
 
 
 def discretize(S: Shaper, sample_rate: float, fractional: str = "linear") -> DiscreteShaper:
@@ -377,15 +279,15 @@ def discretize(S: Shaper, sample_rate: float, fractional: str = "linear") -> Dis
     Ts = 1.0 / fs
     entries: list[tuple[int, float]] = []
     for t, amp in zip(S.times, S.amplitudes):
-        entries += _impulse_taps(float(t) * fs, float(amp), fractional)
-    parts = [_part_taps(p, Ts, fractional) for p in S.distributed]
+        entries += impulse_taps(float(t) * fs, float(amp), fractional)
+    parts = [part_taps(p, Ts, fractional) for p in S.distributed]
     n = max([k for k, _ in entries] + [k0 + w.size - 1 for k0, w in parts] + [0]) + 1
     taps = np.zeros(n)
     for k, w in entries:
         taps[k] += w
     for k0, w in parts:
         taps[k0 : k0 + w.size] += w
-    b, a = _iir(S, Ts)
+    b, a = iir_section(S, Ts)
     # DC gain: FIR taps + IIR DC equal S.dc_gain (fix the rounding on the largest tap)
     target = float(S.amplitudes.sum()) + sum(p.weight for p in S.distributed)
     err = target - float(taps.sum())
@@ -394,7 +296,8 @@ def discretize(S: Shaper, sample_rate: float, fractional: str = "linear") -> Dis
     while taps.size > 1 and taps[-1] == 0.0:
         taps = taps[:-1]
     taps.flags.writeable = False
-    return DiscreteShaper(S, fs, fractional, taps, b, a)
+    sp = sparse_from_parts(entries, [(k0, w, p, Ts) for (k0, w), p in zip(parts, S.distributed)], target)
+    return DiscreteShaper(S, fs, fractional, taps, b, a, sp)
 
 
 # ---------------------------------------------------------------------- filtering
@@ -420,10 +323,13 @@ def _check_chunk(x: Any, name: str) -> np.ndarray:
 
 
 class ShaperFilter:
-    """A stateful discrete shaper for real-time use: feed samples, get shaped samples.
+    """A stateful discrete shaper (or its inverse) for real-time use: feed samples, get shaped samples.
 
-    Output equals :func:`shape_signal` on the concatenated input, however the
-    input is split into chunks.
+    Runs the sparse form of the discretised shaper (:mod:`posicast.simulation.sparse`):
+    O(number of impulses) per sample for lumped shapers, O(1) per distributed kernel
+    of uniform, decreasing or triangular shape (running sums, seed 000 eq. 20); the
+    cost per sample does not grow with the shaper's duration.  Output equals
+    :func:`shape_signal` on the concatenated input, however the input is split.
 
     Parameters
     ----------
@@ -436,6 +342,20 @@ class ShaperFilter:
     initial : float
         The input is taken as constant ``initial`` before the first sample (steady
         state), so a machine resting at ``initial`` does not jump.
+    inverse : bool
+        Run ``1 / S_d(z)`` instead: ``m[n] = (x[n] - sum_{k>=1} w_k m[n-k]) / w_0``, seed
+        000 eq. 19 (inverse ZV) and eq. 20 (inverse DZV) on the sample grid.  Its
+        stability (the zeros of ``S_d``) is checked first, see :attr:`stability`.
+    allow_marginal : bool
+        Accept an inverse whose spectral radius is 1 to ``1e-9`` (the neutral inverse
+        ZV of an undamped mode on the grid): it neither decays nor grows.
+
+    Raises
+    ------
+    ValueError
+        ``inverse=True`` for a shaper whose inverse is unstable (the message states the
+        spectral radius), marginal (unless ``allow_marginal``), has an IIR part or no
+        undelayed tap.
 
     Examples
     --------
@@ -445,6 +365,11 @@ class ShaperFilter:
     [0.5, 0.792, 1.0]
     >>> f.reset(); f.process([0.0, 0.0]).tolist()
     [0.0, 0.0]
+    >>> S = pc.design("zv", pc.Mode(10.0, 0.1))
+    >>> g = ShaperFilter(S, 100.0, inverse=True)
+    >>> x = [0.0, 1.0, 3.0, -2.0] * 10
+    >>> g.stability.verdict, bool(np.allclose(g.process(shape_signal(S, x, 100.0)), x, atol=1e-13))   # 1/S undoes S
+    ('stable', True)
     """
 
     def __init__(
@@ -453,9 +378,13 @@ class ShaperFilter:
         sample_rate: float,
         fractional: str = "linear",
         initial: float = 0.0,
+        inverse: bool = False,
+        allow_marginal: bool = False,
     ) -> None:
         _check_fractional(fractional)
         self._initial = v.finite_real(initial, "initial")
+        self.inverse = v.instance_of(inverse, bool, "inverse", "True or False")
+        v.instance_of(allow_marginal, bool, "allow_marginal", "True or False")
         if isinstance(S, DiscreteShaper):
             fs = v.positive(sample_rate, "sample_rate")
             if not math.isclose(fs, S.sample_rate, rel_tol=1e-12):
@@ -465,7 +394,18 @@ class ShaperFilter:
             self.discrete = S
         else:
             self.discrete = discretize(S, sample_rate, fractional)
-        self._initial = v.finite_real(initial, "initial")
+        self.stability: InverseStability | None = None
+        if self.inverse:
+            st = self.discrete.inverse_stability()
+            name = self.discrete.shaper.name
+            if st.verdict == "unstable" or (st.verdict == "marginal" and not allow_marginal):
+                hint = " (pass allow_marginal=True to run it anyway)" if st.verdict == "marginal" else ""
+                raise ValueError(f"the inverse of the {name!r} shaper at {self.sample_rate:g} Hz is {st.verdict}: "
+                                 f"S_d(z) has a zero of modulus {st.spectral_radius:.12g}{hint}")
+            self.stability = st
+        sp = self.discrete.sparse
+        assert sp is not None
+        self._engine = SparseEngine(sp, self.inverse, self._initial)
         self.reset()
 
     @property
@@ -480,9 +420,7 @@ class ShaperFilter:
         """Forget the past input (back to steady state at ``initial``, default the constructor's)."""
         x0 = self._initial if initial is None else v.finite_real(initial, "initial")
         d = self.discrete
-        # FIR state of the transposed direct form: z_i = sum_{k > i} taps[k] x[n - k + i]
-        t = d.taps
-        self._zf = x0 * np.cumsum(t[::-1])[::-1][1:].copy() if t.size > 1 else np.zeros(0)
+        self._engine.reset(x0)
         if d.b is not None and d.a is not None:
             self._zi = signal.lfilter_zi(d.b, d.a) * x0
         else:
@@ -493,12 +431,9 @@ class ShaperFilter:
         x = _check_chunk(chunk, "chunk")
         if x.size == 0:
             return np.zeros(0)
-        d = self.discrete
-        if self._zf.size:
-            y, self._zf = signal.lfilter(d.taps, [1.0], x, zi=self._zf)
-        else:
-            y = d.taps[0] * x
+        y = self._engine.process(x)
         if self._zi is not None:
+            d = self.discrete
             yi, self._zi = signal.lfilter(d.b, d.a, x, zi=self._zi)
             y = y + yi
         return np.asarray(y, dtype=float)
@@ -509,10 +444,18 @@ class ShaperFilter:
         return float(self.process(np.array([x]))[0])
 
     def __repr__(self) -> str:
-        return f"ShaperFilter({self.discrete!r})"
+        kind = "inverse " if self.inverse else ""
+        return f"ShaperFilter({kind}{self.discrete!r})"
 
 
-def shape_signal(S: Shaper | DiscreteShaper, x: Any, sample_rate: float, fractional: str = "linear") -> np.ndarray:
+def _dense_shape(D: DiscreteShaper, x: np.ndarray) -> np.ndarray:
+    """The dense convolution with every tap (the filter before issue #16; kept for the benchmark)."""
+    y = signal.lfilter(D.taps, [1.0], x)
+    return y + signal.lfilter(D.b, D.a, x) if D.b is not None and D.a is not None else y
+
+
+def shape_signal(S: Shaper | DiscreteShaper, x: Any, sample_rate: float, fractional: str = "linear",
+                 inverse: bool = False, allow_marginal: bool = False) -> np.ndarray:
     """Shape a whole sampled signal ``x`` (taken as zero before its first sample).
 
     The batch counterpart of :class:`ShaperFilter`: same discretisation, same
@@ -525,6 +468,8 @@ def shape_signal(S: Shaper | DiscreteShaper, x: Any, sample_rate: float, fractio
         1-D finite samples at ``sample_rate``.
     sample_rate : float
     fractional : {"linear", "lagrange3", "round"}
+    inverse, allow_marginal : bool
+        Apply ``1 / S`` instead (see :class:`ShaperFilter`).
 
     Returns
     -------
@@ -539,4 +484,4 @@ def shape_signal(S: Shaper | DiscreteShaper, x: Any, sample_rate: float, fractio
     (0.5, 1.0)
     """
     x = _check_chunk(x, "x")  # the input first: nothing is designed for a bad signal
-    return ShaperFilter(S, sample_rate, fractional).process(x)
+    return ShaperFilter(S, sample_rate, fractional, inverse=inverse, allow_marginal=allow_marginal).process(x)
