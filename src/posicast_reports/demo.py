@@ -8,10 +8,19 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
 from typing import TextIO
+
+if __name__ == "__main__":
+    # Run as the report (``python -m posicast_reports.demo``), before numpy loads its BLAS: one BLAS
+    # thread.  The report's linear algebra is on small matrices (at most 23 x 10^4), which BLAS
+    # worker threads do not speed up; on a busy 2-core machine their spin-waiting cost 35-40 % of the
+    # report's CPU (issue #15, benchmarks/RESULTS.md).  A value already in the environment wins.
+    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_var, "1")
 
 import matplotlib.pyplot as plt
 import numpy as np

@@ -19,6 +19,7 @@ come from :func:`klipper_log`.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass
@@ -152,7 +153,19 @@ def _mode_tf(m: Mode, output: str, gain: float) -> tuple[np.ndarray, np.ndarray]
 
 
 def _zoh(num: Any, den: Any, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """ZOH-exact discrete (b, a) via the state space (scipy.signal.cont2discrete)."""
+    """ZOH-exact discrete (b, a) via the state space (scipy.signal.cont2discrete).
+
+    Memoised in memory (never on disk) on the exact coefficients: a Monte Carlo
+    study discretises the same mode at the same rate once per trial, and
+    ``cont2discrete``'s matrix exponential of the badly scaled companion form
+    costs milliseconds (issue #15: 1700 identical calls in ``make demo``).
+    """
+    b, a = _zoh_cached(tuple(map(float, np.ravel(num))), tuple(map(float, np.ravel(den))), float(fs))
+    return b.copy(), a.copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _zoh_cached(num: tuple[float, ...], den: tuple[float, ...], fs: float) -> tuple[np.ndarray, np.ndarray]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", signal.BadCoefficients)
         A, B, C, D = signal.tf2ss(num, den)
