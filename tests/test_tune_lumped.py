@@ -99,3 +99,18 @@ def test_pass2_window_gives_the_whole_range_design(zv_designs):
 
 def test_window_snaps_to_one_two_five():
     assert [_snap_up(v) for v in (15.12, 1.028, 2.0, 0.0042, 7e5)] == pytest.approx([20.0, 2.0, 2.0, 0.005, 1e6])
+
+
+def test_readme_window_example():
+    """README "Window of the final scan" runs as printed (the block is a doctest)."""
+    import doctest
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("*Window of the final scan"):]
+    start = section.index("```python") + len("```python")
+    block = "\n".join(line.strip() for line in section[start: section.index("```", start)].splitlines())
+    test = doctest.DocTestParser().get_doctest(block, {}, "README window", "README.md", 0)
+    runner = doctest.DocTestRunner()
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 5
