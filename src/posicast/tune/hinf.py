@@ -264,19 +264,19 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
         nu, na, nb, w2 = cols.constraints[ci]
         fixed = _fixed_numerator(cols, ci)
         if fixed is not None:  # ||S||inf-like: N = nu, A = |b|^2 >= 0 at every column
-            pieces: tuple[ForbiddenPiece, ...] = _fixed_numerator_pieces(Ur, Ui, cols.b, *fixed)
+            pieces: list[tuple[ForbiddenPiece, np.ndarray | None]] = _fixed_numerator_pieces(Ur, Ui, cols.b, *fixed)
         else:
             if U is None:
                 U = cols.u[None, :] + x[:, None] * cols.a[None, :]
             N = nu[None, :] + x[:, None] * na[None, :]
-            pieces = forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])
-        for lo_, hi_, lroot, hroot, V in pieces:
+            pieces = [(pc, None) for pc in forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])]
+        for (lo_, hi_, lroot, hroot, V), on in pieces:
             if (V is not None and not V.any()) or (V is None and not np.any(lo_ <= hi_)):
                 continue  # empty everywhere on these lines (e.g. no A < 0 for an unweighted Ms bound)
             if hull and V is not None:
                 lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
             else:
-                c_lo = c_hi = colidx
+                c_lo = c_hi = colidx if on is None else colidx[:, on]
             los.append(lo_)
             his.append(hi_)
             cl.append(c_lo)
@@ -309,10 +309,11 @@ def _fixed_numerator(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | 
 
 
 def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np.ndarray,
-                            c: np.ndarray) -> tuple[ForbiddenPiece, ...]:
+                            c: np.ndarray) -> list[tuple[ForbiddenPiece, np.ndarray | None]]:
     """:func:`forbidden_interval`'s pieces for a numerator free of the gains, in real arithmetic
     (``B = Re(U conj b)``, ``D = |U|^2 - w2 |nu|^2``; the same stable roots ``D / q`` and ``q / A``): the
-    interval where ``A > 0``, and where ``A = 0`` the ray or everything (no ``A < 0`` here)."""
+    interval where ``A > 0`` (every column), and where ``A = 0`` the ray or everything (on those columns
+    only, given as the second item; no ``A < 0`` here)."""
     br, bi = b.real[None, :], b.imag[None, :]
     A2, c2 = A[None, :], c[None, :]
     B = Ur * br
@@ -335,7 +336,8 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
         hi = np.fmax(r1, r2, out=r2)
     lo[~pos] = _INF
     hi[~pos] = -_INF
-    out = [ForbiddenPiece(lo, hi, Root.SMALLER, Root.LARGER, pos)]
+    out: list[tuple[ForbiddenPiece, np.ndarray | None]] = [(ForbiddenPiece(lo, hi, Root.SMALLER, Root.LARGER, pos),
+                                                            None)]
     z = np.flatnonzero(A == 0)
     if z.size:  # the linear case, on those columns only: 2 B ky + D <= 0
         Bz, Dz = B[:, z], D[:, z]
@@ -343,12 +345,10 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
         with np.errstate(invalid="ignore", divide="ignore"):
             root = -Dz / (2.0 * Bz)
         zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
-        lo4 = np.full(B.shape, _INF)
-        hi4 = np.full(B.shape, -_INF)
-        lo4[:, z] = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
-        hi4[:, z] = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
-        out.append(ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None))
-    return tuple(out)
+        lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
+        hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
+        out.append((ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), z))
+    return out
 
 
 #: What bounds each admissible interval of a line, below and above.
