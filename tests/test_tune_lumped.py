@@ -14,8 +14,12 @@ import pytest
 
 import posicast
 from posicast.cases import ALL
+from posicast.tune import design as design_module
 from posicast.tune import frequency
+from posicast.tune.design import _snap_up
 from posicast.tune.frequency import thin_columns
+from posicast.tune.regions import Region
+from posicast.tune.scan import intersect
 
 CRANE = ALL["gantry_crane"]
 
@@ -65,3 +69,48 @@ def test_lumped_design_is_the_full_grid_design(zv_designs):
     for la, lb in zip(a.lines, b.lines):
         assert la.hinf.shape == lb.hinf.shape
         np.testing.assert_allclose(la.hinf, lb.hinf, rtol=1e-6, atol=1e-9)
+
+
+# ---------------------------------------------------------------------------- issue #15: pass 2 in a window
+def test_pass2_window_gives_the_whole_range_design(zv_designs):
+    """For a large (lumped-shaper) grid the final scan refines a ky window around the optimum's component:
+    the optimum is the whole-range scan's (8.6139 / 1.4681), the window is stated (Kp in [-20, 20]: twice the
+    sweep's 7.56, rounded up), and inside it every line's H-infinity intervals are the whole-range scan's."""
+    windowed = zv_designs[0]
+    saved = design_module.WINDOW_ABOVE
+    design_module.WINDOW_ABOVE = 10**12  # the whole search range, as before
+    try:
+        whole = posicast.tune_pd(CRANE.G, posicast.design("zv", CRANE.mode), "control_action", ms=1.2, F=CRANE.F)
+    finally:
+        design_module.WINDOW_ABOVE = saved
+    assert windowed.kp == pytest.approx(whole.kp, rel=1e-9) and windowed.kd == pytest.approx(whole.kd, rel=1e-9)
+    a, b = windowed.region, whole.region
+    assert a.windowed and not b.windowed and b.sweep is None
+    assert a.y_range == (-20.0, 20.0) and a.search_range == b.y_range
+    assert isinstance(a.sweep, Region) and a.sweep.x.size == 67 and a.sweep.y_range == b.y_range
+    assert "kp in [-20, 20]" in windowed.summary() and "window" in repr(a)
+    np.testing.assert_array_equal(a.x, b.x)
+    for la, lb in zip(a.lines, b.lines):
+        inside = intersect(lb.hinf, np.array([a.y_range]))
+        assert la.hinf.shape == inside.shape
+        np.testing.assert_allclose(la.hinf, inside, rtol=1e-6, atol=1e-9)
+    assert a.extent() == pytest.approx(b.extent(), rel=1e-9)
+
+
+def test_window_snaps_to_one_two_five():
+    assert [_snap_up(v) for v in (15.12, 1.028, 2.0, 0.0042, 7e5)] == pytest.approx([20.0, 2.0, 2.0, 0.005, 1e6])
+
+
+def test_readme_window_example():
+    """README "Window of the final scan" runs as printed (the block is a doctest)."""
+    import doctest
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("*Window of the final scan"):]
+    start = section.index("```python") + len("```python")
+    block = "\n".join(line.strip() for line in section[start: section.index("```", start)].splitlines())
+    test = doctest.DocTestParser().get_doctest(block, {}, "README window", "README.md", 0)
+    runner = doctest.DocTestRunner()
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 5

@@ -187,18 +187,43 @@ def complex_curve(cols: Columns) -> ComplexCurve:
 
 def _curve_crossings(c_along: np.ndarray, c_across: np.ndarray,
                      level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where the polyline ``(c_along, c_across)`` crosses ``c_along = level``: (row, value across, column)."""
-    d = c_along[None, :] - level[:, None]
-    sign = np.sign(d)
-    ch = sign[:, :-1] * sign[:, 1:] <= 0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = d[:, :-1] / (d[:, :-1] - d[:, 1:])
-    t = np.where(np.isfinite(t), t, 0.0)
-    val = c_across[None, :-1] + t * (c_across[None, 1:] - c_across[None, :-1])
+    """Where the polyline ``(c_along, c_across)`` crosses ``c_along = level``: (row, value across, column).
+
+    A segment ``j`` crosses level ``i`` when ``(c_along[j] - level[i])`` and ``(c_along[j + 1] - level[i])``
+    do not have the same strict sign, i.e. the level lies in the segment's closed span; segments across
+    a jump (a pole of the curve) are skipped.  The levels are sorted once and each segment's span is
+    located among them by binary search, so the cost grows with the number of segments and of
+    crossings, not with their product.  Sorted by row, then column.
+    """
+    level = np.asarray(level, dtype=float)
+    p, q = c_along[:-1], c_along[1:]
     jump = np.abs(c_across[1:] - c_across[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_across[:-1]), np.abs(c_across[1:])))
-    jump |= np.abs(c_along[1:] - c_along[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_along[:-1]), np.abs(c_along[1:])))
-    rows, cols = np.nonzero(ch & ~jump[None, :])
-    return rows, val[rows, cols], cols
+    jump |= np.abs(q - p) > 1e3 * (1.0 + np.minimum(np.abs(p), np.abs(q)))
+    seg = np.flatnonzero(~jump & ~np.isnan(p) & ~np.isnan(q))
+    order = np.argsort(level, kind="stable")
+    order = order[~np.isnan(level[order])]
+    sl = level[order]
+    start = np.searchsorted(sl, np.minimum(p[seg], q[seg]), side="left")
+    count = np.searchsorted(sl, np.maximum(p[seg], q[seg]), side="right") - start
+    count = np.maximum(count, 0)
+    cols = np.repeat(seg, count)
+    first = np.repeat(np.cumsum(count) - count, count)
+    rank = np.repeat(start, count) + (np.arange(cols.size) - first)
+    rows = order[rank]
+    d0 = c_along[cols] - level[rows]
+    d1 = c_along[cols + 1] - level[rows]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = d0 / (d0 - d1)
+    t = np.where(np.isfinite(t), t, 0.0)
+    val = c_across[cols] + t * (c_across[cols + 1] - c_across[cols])
+    srt = np.lexsort((cols, rows))
+    return rows[srt], val[srt], cols[srt]
+
+
+def _split_rows(rows: np.ndarray, m: int) -> list[slice]:
+    """For row indices sorted ascending, the slice of each row ``0 .. m - 1``."""
+    edges = np.searchsorted(rows, np.arange(m + 1))
+    return [slice(int(edges[i]), int(edges[i + 1])) for i in range(m)]
 
 
 class ComplexBreaks(NamedTuple):
@@ -215,7 +240,7 @@ def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[Co
     if curve.ok:
         rows, ys, cc = _curve_crossings(curve.x, curve.y, x)
         err = np.abs(curve.y[cc + 1] - curve.y[cc])
-        return [ComplexBreaks(ys[rows == i], cc[rows == i], err[rows == i]) for i in range(x.size)]
+        return [ComplexBreaks(ys[k], cc[k], err[k]) for k in _split_rows(rows, x.size)]
     return _complex_breaks_general(cols, curve, x)
 
 

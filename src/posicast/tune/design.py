@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Any, Callable, Mapping, Sequence
+from dataclasses import replace
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -42,7 +43,7 @@ from .frequency import FrequencyData, _poly_tf
 from .inputs import (architecture_argument, check_architecture, check_blocks, check_range, constraint_tuple,
                      constraints_with_ms)
 from .optimum import SWEEP_DECADES, empty_result, optimum, weakly_neutral
-from .regions import Region, component_lines, best_piece, make_region
+from .regions import Region, best_piece, component_extent, component_lines, make_region, pieces, segment_stable
 from .result import TuningResult
 from .scan import LineData, Problem, make_problem, regrid, scan_lines
 
@@ -54,6 +55,8 @@ _PASS1_LINES = 41
 # would exceed MAX_SECONDS.
 MAX_LINES = 100_001
 MAX_SECONDS = 60.0
+#: pass 2 scans a window around the best component when the frequency grid has this many columns or more
+WINDOW_ABOVE = 8000
 
 
 def _architecture(architecture: Any, structure: Any) -> str:
@@ -119,15 +122,67 @@ def _hinf_wanted(lines: list[LineData]) -> Callable[[int], np.ndarray]:
 
 
 def _build_region(problem: Problem, family: ControllerFamily, xs: np.ndarray,
-                  y_range: tuple[float, float], previous: Region | None = None) -> Region:
+                  y_range: tuple[float, float], previous: Region | None = None,
+                  search_range: tuple[float, float] | None = None) -> Region:
     """Scan ``xs``; the cells of ``previous`` whose checked point connects to a new segment
-    without crossing a boundary pass their stability label on (no second spectrum check)."""
+    without crossing a boundary pass their stability label on (no second spectrum check).
+    With ``search_range`` wider than ``y_range`` the region is windowed and keeps ``previous`` as its sweep."""
     lines = scan_lines(problem, xs)
     cells = Cells(problem.loop_factory, problem.ledger, (family.x, family.y))
     join_lines(problem, lines, cells, _hinf_wanted(lines))
     if previous is not None and lines:
         _inherit_labels(problem, previous.cells, lines, cells, xs)
-    return make_region(problem, family, lines, cells, y_range)
+    windowed = search_range is not None and tuple(search_range) != tuple(y_range)
+    return make_region(problem, family, lines, cells, y_range, search_range, previous if windowed else None)
+
+
+def _snap_up(value: float) -> float:
+    """The smallest of 1, 2, 5 times a power of ten that is ``>= value`` (a window that reads well and does
+    not move with rounding-level changes of the first pass)."""
+    k = math.floor(math.log10(value))
+    for f in (1.0, 2.0, 5.0, 10.0):
+        if value <= f * 10.0**k * (1 + 1e-12):
+            return f * 10.0**k
+    return 10.0 ** (k + 1)
+
+
+def _windows(problem: Problem, sweep: Region, comp: np.ndarray, best: tuple[int, float, float],
+             yr: tuple[float, float]) -> Iterator[tuple[float, float]]:
+    """The ``ky`` windows pass 2 tries, narrowest first; the last is the whole range ``yr``.
+
+    Only a large frequency grid (``WINDOW_ABOVE`` columns or more: a lumped shaper or a delay in the loop,
+    whose ``|L|`` does not decay) is worth a window: the columns a line needs
+    (:func:`~posicast.tune.frequency.thin_columns`) grow with the ``ky`` it must resolve.
+    The first window is ``+/- R``, ``R`` twice the largest ``|ky|`` of the best component on the sweep
+    lines rounded up to 1, 2 or 5 times a power of ten; each next one is ten times wider.
+    """
+    if problem.columns.n_grid >= WINDOW_ABOVE and math.isfinite(best[2]):
+        lo, hi = component_extent(sweep, comp, best[0], interval_point(best[1], best[2]))
+        base = max(abs(lo), abs(hi))
+        if math.isfinite(base) and base > 0:
+            R = _snap_up(2.0 * base)
+            while R < max(abs(yr[0]), abs(yr[1])):
+                yield max(yr[0], -R), min(yr[1], R)
+                R = _snap_up(10.0 * R)
+    yield yr
+
+
+def _reaches_edge(region: Region, yr: tuple[float, float]) -> bool:
+    """Does an admissible piece of a windowed region reach the window's top, or the best component reach
+    its bottom (the component continues beyond: a wider window is needed)?"""
+    w_lo, w_hi = region.y_range
+    best = best_piece(region)
+    root = None
+    if best is not None:
+        ln = region.lines[best[0]]
+        root = region.cells.find(int(ln.comp[int(np.searchsorted(ln.breaks, interval_point(best[1], best[2])))]))
+    for i, ln in enumerate(region.lines):
+        for lo, hi, j in pieces(region, i):
+            if hi >= w_hi and w_hi < yr[1] and segment_stable(region, i, j, interval_point(lo, hi)):
+                return True
+            if lo <= w_lo and w_lo > yr[0] and root is not None and region.cells.find(int(ln.comp[j])) == root:
+                return True
+    return False
 
 
 def _inherit_labels(problem: Problem, old: Cells, lines: list[LineData], cells: Cells, xs: np.ndarray) -> None:
@@ -235,7 +290,15 @@ def tune(
         ytop = abs(best[2]) if math.isfinite(best[2]) else sy
         fd.refine((max(abs(a), abs(b)), max(ytop, sy)))
         problem = regrid(problem)
-        region = _build_region(problem, family, np.linspace(a, b, n_lines), yr, region)
+        sweep, xs2 = region, np.linspace(a, b, n_lines)
+        # the exact scan where the answer is: a window around the best component, widened while the
+        # admissible set reaches its top (or the component its bottom); beyond it, the sweep's lines
+        for win in _windows(problem, sweep, comp, best, yr):
+            p2 = problem if win == yr else replace(problem, y_window=win)
+            region = _build_region(p2, family, xs2, win, sweep, search_range=yr)
+            if win == yr or not _reaches_edge(region, yr):
+                problem = p2
+                break
     timings["pass 2"] = time.perf_counter() - t0
 
     # ---- the optimum

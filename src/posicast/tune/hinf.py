@@ -255,19 +255,28 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
     los, his, cl, ch, cons, lr, hr = [], [], [], [], [], [], []
     ncol = cols.u.size
     colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
-    U = cols.u[None, :] + x[:, None] * cols.a[None, :]
+    # 1 + L without ky, in real and imaginary parts (the same numbers as u + x a in complex arithmetic)
+    Ur = cols.u.real[None, :] + x[:, None] * cols.a.real[None, :]
+    Ui = cols.u.imag[None, :] + x[:, None] * cols.a.imag[None, :]
+    U: np.ndarray | None = None
+    dU = np.hypot(np.diff(Ur, axis=1), np.diff(Ui, axis=1)) if hull else None
     for ci in which:
         nu, na, nb, w2 = cols.constraints[ci]
-        N = nu[None, :] + x[:, None] * na[None, :]
-        pieces = forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])
-        dU = np.abs(np.diff(U, axis=1)) if hull else None
-        for lo_, hi_, lroot, hroot, V in pieces:
+        fixed = _fixed_numerator(cols, ci)
+        if fixed is not None:  # ||S||inf-like: N = nu, A = |b|^2 >= 0 at every column
+            pieces: list[tuple[ForbiddenPiece, np.ndarray | None]] = _fixed_numerator_pieces(Ur, Ui, cols.b, *fixed)
+        else:
+            if U is None:
+                U = cols.u[None, :] + x[:, None] * cols.a[None, :]
+            N = nu[None, :] + x[:, None] * na[None, :]
+            pieces = [(pc, None) for pc in forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])]
+        for (lo_, hi_, lroot, hroot, V), on in pieces:
             if (V is not None and not V.any()) or (V is None and not np.any(lo_ <= hi_)):
                 continue  # empty everywhere on these lines (e.g. no A < 0 for an unweighted Ms bound)
             if hull and V is not None:
                 lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
             else:
-                c_lo = c_hi = colidx
+                c_lo = c_hi = colidx if on is None else colidx[:, on]
             los.append(lo_)
             his.append(hi_)
             cl.append(c_lo)
@@ -281,6 +290,65 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
         cons, lr, hr = [np.zeros(1, int)], [np.full(1, int(Root.INFINITE))], [np.full(1, int(Root.INFINITE))]
     return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), np.concatenate(cl, axis=1),
                      np.concatenate(ch, axis=1), np.concatenate(cons), np.concatenate(lr), np.concatenate(hr))
+
+
+def _fixed_numerator(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(A, w2 |nu|^2)`` per column when constraint ``ci``'s numerator does not depend on the gains
+    (``na = nb = 0``: a bound on ``S``, weighted or not), so that ``A = |b|^2 >= 0`` at every column
+    (0 where ``b`` vanishes, e.g. the limit columns of a decaying ``b``); else None."""
+    nu, na, nb, w2 = cols.constraints[ci]
+    if np.any(na != 0) or np.any(nb != 0):
+        return None
+    A = np.abs(cols.b) ** 2 - w2 * np.abs(nb) ** 2
+    Ascale = np.abs(cols.b) ** 2 + w2 * np.abs(nb) ** 2
+    with np.errstate(invalid="ignore"):
+        A = np.where(np.abs(A) <= 1e-13 * Ascale, 0.0, A)
+        if np.any(A < 0):
+            return None
+    return A, w2 * np.abs(nu) ** 2
+
+
+def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np.ndarray,
+                            c: np.ndarray) -> list[tuple[ForbiddenPiece, np.ndarray | None]]:
+    """:func:`forbidden_interval`'s pieces for a numerator free of the gains, in real arithmetic
+    (``B = Re(U conj b)``, ``D = |U|^2 - w2 |nu|^2``; the same stable roots ``D / q`` and ``q / A``): the
+    interval where ``A > 0`` (every column), and where ``A = 0`` the ray or everything (on those columns
+    only, given as the second item; no ``A < 0`` here)."""
+    br, bi = b.real[None, :], b.imag[None, :]
+    A2, c2 = A[None, :], c[None, :]
+    B = Ur * br
+    B += Ui * bi
+    D = Ur * Ur
+    D += Ui * Ui
+    D -= c2
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        disc = B * B
+        disc -= A2 * D
+        q = np.sqrt(np.maximum(disc, 0.0))
+        q = np.where(B >= 0, q, -q)
+        q += B
+        np.negative(q, out=q)
+        r1 = D / q
+        r1[q == 0] = 0.0
+        r2 = q / A2
+        pos = np.isfinite(D) & np.isfinite(B) & (A2 > 0) & (disc > 0)
+        lo = np.fmin(r1, r2)
+        hi = np.fmax(r1, r2, out=r2)
+    lo[~pos] = _INF
+    hi[~pos] = -_INF
+    out: list[tuple[ForbiddenPiece, np.ndarray | None]] = [(ForbiddenPiece(lo, hi, Root.SMALLER, Root.LARGER, pos),
+                                                            None)]
+    z = np.flatnonzero(A == 0)
+    if z.size:  # the linear case, on those columns only: 2 B ky + D <= 0
+        Bz, Dz = B[:, z], D[:, z]
+        ok = np.isfinite(Ur[:, z]) & np.isfinite(Ui[:, z]) & np.isfinite(Dz) & np.isfinite(Bz)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            root = -Dz / (2.0 * Bz)
+        zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
+        lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
+        hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
+        out.append((ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), z))
+    return out
 
 
 #: What bounds each admissible interval of a line, below and above.

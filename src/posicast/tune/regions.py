@@ -26,8 +26,8 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 __all__ = ["Region", "LineData", "make_region", "admissible_intervals", "pieces", "best_piece", "component_lines",
-           "hinf_intervals", "stable_intervals", "default_window", "extent", "area", "contains", "mask",
-           "signed_distance"]
+           "component_extent", "hinf_intervals", "stable_intervals", "default_window", "extent", "area", "contains",
+           "mask", "signed_distance"]
 
 _INF = math.inf
 _WHAT = ("admissible", "hinf", "stable")
@@ -52,7 +52,10 @@ class Region:
         The scan lines.
     spacing : float
     y_range : (float, float)
-        The ``ky`` range searched.
+        The ``ky`` range this region covers: every line is exact over it.  The
+        whole search range (:attr:`search_range`), or, for a loop whose frequency
+        grid is large (a lumped shaper or a delay in the loop), the window around
+        the optimum's component that the final scan refined (:attr:`windowed`).
     constraints : tuple of Constraint
     lines : tuple of LineData
         What the scan found on each line.
@@ -62,6 +65,13 @@ class Region:
         The scan's frequency data and boundaries.
     empty : bool
         No admissible stable controller on any line.
+    search_range : (float, float) or None
+        The ``ky`` range of the whole search (the tuning's ``ky_range`` or its
+        automatic window); None: :attr:`y_range`.
+    sweep : Region or None
+        The first pass: the whole :attr:`search_range` on the logarithmic sweep
+        lines, exact on those lines (coarser in ``kx`` than this region); None
+        when this region is that pass, or is not windowed.
     """
 
     family: ControllerFamily
@@ -74,12 +84,19 @@ class Region:
     lines: tuple[LineData, ...]
     cells: Cells = field(repr=False)
     problem: Problem = field(repr=False)
+    search_range: tuple[float, float] | None = None
+    sweep: Region | None = field(default=None, repr=False)
     _admissible: dict[int, np.ndarray] = field(default_factory=dict, init=False, repr=False)
 
     # ------------------------------------------------------------------ short forms of the queries
     @property
     def empty(self) -> bool:
         return all(admissible_intervals(self, i).size == 0 for i in range(len(self.lines)))
+
+    @property
+    def windowed(self) -> bool:
+        """Does :attr:`y_range` cover less than :attr:`search_range` (the far parts only in :attr:`sweep`)?"""
+        return self.search_range is not None and tuple(self.y_range) != tuple(self.search_range)
 
     @property
     def stability_checks(self) -> int:
@@ -137,16 +154,18 @@ class Region:
         ext = extent(self)
         where = "empty" if ext is None else (
             f"{self.x_name} in [{ext[0]:.4g}, {ext[1]:.4g}], {self.y_name} in [{ext[2]:.4g}, {ext[3]:.4g}]")
-        return f"Region({self.x.size} lines, spacing {self.spacing:.3g}; admissible: {where})"
+        win = f"; {self.y_name} window [{self.y_range[0]:.4g}, {self.y_range[1]:.4g}]" if self.windowed else ""
+        return f"Region({self.x.size} lines, spacing {self.spacing:.3g}{win}; admissible: {where})"
 
 
 def make_region(problem: Problem, family: ControllerFamily, lines: list[LineData], cells: Cells,
-                y_range: tuple[float, float]) -> Region:
-    """The region of a scan."""
+                y_range: tuple[float, float], search_range: tuple[float, float] | None = None,
+                sweep: Region | None = None) -> Region:
+    """The region of a scan (``search_range``, ``sweep``: see :class:`Region`)."""
     x = np.array([ln.x for ln in lines])
     spacing = float(np.median(np.diff(x))) if x.size > 1 else 0.0
     return Region(family, family.x, family.y, x, spacing, y_range, problem.fd.constraints, tuple(lines), cells,
-                  problem)
+                  problem, search_range, sweep)
 
 
 # ---------------------------------------------------------------------- argument checks
@@ -214,6 +233,20 @@ def component_lines(region: Region, i: int, y: float) -> np.ndarray:
     root = cells.find(int(ln.comp[int(np.searchsorted(ln.breaks, y))]))
     return np.array([k for k, other in enumerate(region.lines)
                      if any(cells.find(int(c)) == root for c in other.comp if c >= 0)], dtype=int)
+
+
+def component_extent(region: Region, lines: np.ndarray, i: int, y: float) -> tuple[float, float]:
+    """``(lowest, highest)`` ``ky`` of the admissible pieces on ``lines`` in the joined component of ``(x[i], y)``."""
+    ln = region.lines[i]
+    cells = region.cells
+    root = cells.find(int(ln.comp[int(np.searchsorted(ln.breaks, y))]))
+    lo, hi = _INF, -_INF
+    for k in lines:
+        comp = region.lines[int(k)].comp
+        for a, b, j in pieces(region, int(k)):
+            if cells.find(int(comp[j])) == root:
+                lo, hi = min(lo, a), max(hi, b)
+    return lo, hi
 
 
 def hinf_intervals(region: Region, i: int, constraint: int | None = None) -> np.ndarray:

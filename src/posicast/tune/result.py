@@ -59,6 +59,17 @@ class TuningResult:
         Which constraints hold with equality (to 1e-6 relative) at the chosen point.
     constraints : tuple of Constraint
     region : Region
+        The admissible region, exact on every scan line over ``region.y_range``.
+        For a loop whose frequency grid is large (a lumped shaper or a delay in
+        the loop: ``|L|`` does not decay) the final scan refines only a window of
+        the maximised gain around the optimum's component (``+/- R``, ``R`` twice
+        its largest ``|ky|`` on the sweep lines rounded up to 1, 2 or 5 times a
+        power of ten, widened tenfold while the admissible set reaches the
+        window's top or the component its bottom): then ``region.windowed`` is
+        True, ``region.y_range`` is that window, ``region.search_range`` the whole
+        search range, and ``region.sweep`` the first pass (the whole search range
+        on the logarithmic sweep lines, coarser in the scanned gain).
+        :meth:`summary` states the window.
     empty, unbounded : bool
         No admissible controller; or the maximised gain is not bounded by the
         constraints within the ranges (the point returned is then the best one
@@ -153,9 +164,16 @@ class TuningResult:
         g = ", ".join(f"{k} = {self.gains[k]:.6g}" for k in ("kp", "ki", "kd") if self._gain(k) is not None)
         cons = "; ".join(f"{c.label}: {n:.6g}{' (active)' if a else ''}"
                          for c, n, a in zip(self.constraints, self.norms, self.active))
-        return (f"{self.family.describe()} in {self.architecture}: {g}\n"
-                f"  Ms = {self.ms:.6g} at {self.omega_ms:.4g} rad/s (stability margin {self.sm:.4g}); {cons}\n"
-                f"  {'stable' if self.stable else 'UNSTABLE'} (spectral abscissa {self.abscissa:.4g}); {self.reason}")
+        out = (f"{self.family.describe()} in {self.architecture}: {g}\n"
+               f"  Ms = {self.ms:.6g} at {self.omega_ms:.4g} rad/s (stability margin {self.sm:.4g}); {cons}\n"
+               f"  {'stable' if self.stable else 'UNSTABLE'} (spectral abscissa {self.abscissa:.4g}); {self.reason}")
+        reg = self.region
+        if reg.windowed and reg.search_range is not None:
+            y, (lo, hi), (slo, shi) = reg.y_name, reg.y_range, reg.search_range
+            out += (f"\n  region: {reg.x.size} lines exact for {y} in [{lo:.4g}, {hi:.4g}] (the window around the "
+                    f"optimum's component); {y} in [{slo:.4g}, {shi:.4g}] on the {reg.sweep.x.size if reg.sweep else 0} "
+                    f"sweep lines only (region.sweep)")
+        return out
 
     def __repr__(self) -> str:
         if self.gains is None:

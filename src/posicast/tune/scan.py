@@ -288,8 +288,8 @@ def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.nd
     """Every interval end of a block of lines polished in one vectorised pass (:func:`polish_ends`).
 
     On thinned columns (``sel`` not None) each end is then named by the whole grid's column
-    nearest to its extremum, so that later refinements (:func:`~posicast.tune.hinf.exact_end`)
-    bracket it between that grid's neighbours.
+    nearest to its extremum and polished again between that grid's neighbours (as on the whole
+    grid), so that later refinements (:func:`~posicast.tune.hinf.exact_end`) bracket it there too.
     """
     flat_ends = [e for _, ends in total for pair in ends for e in pair]
     flat_x = np.concatenate([np.full(2 * len(ends), x) for x, (_, ends) in zip(xb, total)])
@@ -299,6 +299,8 @@ def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.nd
     offsets = np.cumsum([0] + [2 * len(ends) for _, ends in total])
     if sel is not None:
         named = [_grid_branch(e, w, sub, sel, cols) for e, w in zip(flat_ends, where)]
+        # polished again between the whole grid's neighbours of the extremum: as exact as without thinning
+        polished = polish_ends(cols, flat_x, named, polished, upper)
         total = [(iv, [(named[offsets[i] + 2 * j], named[offsets[i] + 2 * j + 1]) for j in range(len(ends))])
                  for i, (iv, ends) in enumerate(total)]
     return [polished[offsets[i] : offsets[i + 1]].reshape(-1, 2).copy() for i in range(len(total))], total
