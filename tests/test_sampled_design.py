@@ -27,10 +27,10 @@ def eq8_taps(mode, T):
 
 @pytest.mark.parametrize("T", PERIODS)
 def test_zv_taps_are_eq8_and_zero_on_sampled_pole(T):
-    S = pc.design("zv", M28, sample_period=T) if T >= 1e-3 else None
+    S = pc.design("zv", M28, sample_period=T, stride=1) if T >= 1e-3 else None
     if S is None:
         with pytest.warns(UserWarning, match="stride='positive'"):
-            S = pc.design("zv", M28, sample_period=T)
+            S = pc.design("zv", M28, sample_period=T, stride=1)
     ref = eq8_taps(M28, T)
     full = np.zeros(3)
     full[np.rint(S.times / T).astype(int)] = S.amplitudes
@@ -113,7 +113,7 @@ def test_several_modes_and_actuator_order():
 
 def test_short_period_stride_one_warns_and_says_why():
     with pytest.warns(UserWarning, match="tap gain"):
-        S = pc.design("zvd", SLOW, sample_period=1e-3)
+        S = pc.design("zvd", SLOW, sample_period=1e-3, stride=1)
     assert S.params["tap_gain"] > GAIN_WARN and not S.is_positive
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -142,3 +142,16 @@ def test_bad_input_named_errors():
         zplane_taps(M28, 0.01, 1.5)
     with pytest.raises(ValueError, match="rise_time = .* shorter"):
         highest_multiplicity(M28, 0.01, 0.01)
+
+
+def test_design_default_stride_is_the_smallest_with_nonnegative_taps():
+    """design(..., sample_period=T) gives usable taps by default: the seed's adjacent taps where they are
+    nonnegative (28 Hz at 10 ms), otherwise the smallest stride with nonnegative taps and the same exact zeros."""
+    seed = pc.design("zvd", M28, sample_period=0.01, stride=1)
+    default = pc.design("zvd", M28, sample_period=0.01)
+    assert default.params["stride"] == [1] and np.array_equal(default.amplitudes, seed.amplitudes)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")             # no tap-gain warning with the default
+        S = pc.design("zvd", M28, sample_period=1e-3)
+    n = math.ceil(math.pi / (2 * M28.damped_omega * 1e-3))   # n Omega T >= pi / 2
+    assert S.params["stride"] == [n] and S.is_positive and abs(S(M28.pole)) <= 1e-12

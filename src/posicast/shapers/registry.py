@@ -165,7 +165,7 @@ def _design_sampled(key: str, mode: Any, params: dict[str, Any]) -> Shaper:
         raise ValueError(f"sample_period is supported for kinds {', '.join(SAMPLED_KINDS)} (zeros on the sampled "
                          f"pole, seed 002 eq. 8); for {key!r} design the continuous shaper and discretise it "
                          "(posicast.simulation.streaming.discretize, which reports the residual)")
-    T, stride = params.pop("sample_period"), params.pop("stride", 1)
+    T, stride = params.pop("sample_period"), params.pop("stride", "positive")
     unknown = set(params) - set(KINDS[key].params)
     if unknown:
         raise TypeError(f"kind {key!r} takes no parameter {sorted(unknown)[0]!r} with sample_period "
@@ -188,7 +188,10 @@ def design(kind: str, mode: Mode | tuple[float, float], **params: Any) -> Shaper
         default 0.05); ``sample_period`` (zv, zvd, zvdd, zvddd, zvdk: the z-plane design of
         seed 002 eq. 8, impulses on the grid ``k T``, zeros of multiplicity 1, 2, 3, 4, ``k + 1``
         on the sampled pole ``exp(p T)``; ``mode`` may then be a sequence of modes) with
-        ``stride`` (samples between taps, or ``"positive"``; see
+        ``stride`` (samples between taps; default ``"positive"``, the smallest stride with
+        nonnegative taps, which is seed 002's adjacent taps (stride 1) whenever those are
+        nonnegative; ``stride=1`` always gives the seed's taps, which alternate in sign and
+        grow like ``(|p| T)^(-2m)`` at short periods; see
         :func:`posicast.shapers.sampled.zplane_shaper`); ``method`` (ei: ``"exact"`` (hump of height vtol exactly at the
         model frequency: the shaper ``ei_exact(mode, vtol)`` returns), ``"singhose"``
         (t3 = T_d, ``ei_exact(..., definition="singhose")``) or ``"fit"``); ``n`` (mis_zv,
