@@ -26,7 +26,7 @@ SLSQP finds a local optimum: the cost is the best of the starts, not a certified
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -294,14 +294,14 @@ class _QFTProblem:
     margin: float
     refinements: int
     maxiter: int
-    w_lo: float = 0.0
-    w_hi: float = 0.0
-    grid: np.ndarray = field(default_factory=lambda: np.zeros(0))   # the first design grid
-    dense: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the check's grid
-    polys: Any = None
-    center: float = 0.0     # the reference's pole scale
-    bounds: Any = None
-    nG: int = 0             # the controller's parameters (then F_c's)
+    w_lo: float
+    w_hi: float
+    grid: np.ndarray    # the first design grid
+    dense: np.ndarray   # the check's grid
+    polys: Any
+    center: float       # the reference's pole scale
+    bounds: Any
+    nG: int             # the controller's parameters (then F_c's)
 
 
 def _qft_problem(plants: Any, reference: Any, stability: Any, matching: Any, frequencies: Any, structure: Any,
@@ -320,25 +320,27 @@ def _qft_problem(plants: Any, reference: Any, stability: Any, matching: Any, fre
     margin = v.nonnegative(stability_margin, "stability_margin")
     refinements = v.integer_in_range(refinements, "refinements", 0, 20)
     maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
-    return _with_grids(_QFTProblem(ps, ref, gamma, delta, st, F, stF, freqs, dist, margin, refinements, maxiter))
+    return _QFTProblem(ps, ref, gamma, delta, st, F, stF, freqs, dist, margin, refinements, maxiter,
+                       *_grids(ps, ref, freqs, st, stF))
 
 
-def _with_grids(p: _QFTProblem) -> _QFTProblem:
-    lo, hi = _feature_range(p.ps, p.ref)
-    w_lo, w_hi = min(lo, p.freqs.min()) / 30, max(hi, p.freqs.max()) * 30
-    grid = np.union1d(dense_grid(w_lo, w_hi, 60), p.freqs)
-    polys = p.ps.polynomials()
-    rden = np.trim_zeros(np.asarray(p.ref.to_scipy().den, float), "f")
+def _grids(ps: PlantSet, ref: TransferFunction, freqs: np.ndarray, st: Structure,
+           stF: Structure | None) -> tuple[Any, ...]:
+    """``(w_lo, w_hi, grid, dense, polys, center, bounds, nG)`` of :class:`_QFTProblem`."""
+    lo, hi = _feature_range(ps, ref)
+    w_lo, w_hi = min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30
+    grid = np.union1d(dense_grid(w_lo, w_hi, 60), freqs)
+    polys = ps.polynomials()
+    rden = np.trim_zeros(np.asarray(ref.to_scipy().den, float), "f")
     center = float(abs(rden[-1] / rden[0]) ** (1.0 / max(1, rden.size - 1)))  # the reference's pole scale
     if not (np.isfinite(center) and center > 0):
         center = float(np.sqrt(lo * hi))
-    bounds = p.st.bounds(w_lo / 10, w_hi * 10)
-    nG = p.st.n_params
-    if p.stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
-        bounds = bounds + [(0.0, 0.0)] + p.stF.bounds(w_lo / 10, w_hi * 10)[1:]
+    bounds = st.bounds(w_lo / 10, w_hi * 10)
+    nG = st.n_params
+    if stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
+        bounds = bounds + [(0.0, 0.0)] + stF.bounds(w_lo / 10, w_hi * 10)[1:]
     dense = dense_grid(w_lo, w_hi, 1000)
-    return replace(p, w_lo=w_lo, w_hi=w_hi, grid=grid, dense=dense, polys=polys, center=center, bounds=bounds,
-                   nG=nG)
+    return w_lo, w_hi, grid, dense, polys, center, bounds, nG
 
 
 def _prefilter_at(p: _QFTProblem, x: np.ndarray, s_: np.ndarray) -> np.ndarray | None:
