@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -101,12 +102,48 @@ def _array(ctype: str, name: str, values: Any, lit: Any, per_line: int = 4) -> s
     return f"static const {ctype} {name}[{len(items)}] = {{\n    " + ",\n    ".join(lines) + "\n};"
 
 
-def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStability | None, prec: str,
-       resync: int) -> str:
-    S, sp = D.shaper, D.sparse
-    assert sp is not None
-    U, T = name.upper(), f"{name}_real"
-    lit = (lambda x: _lit(x, prec))
+@dataclass(frozen=True)
+class _CTaps:
+    """The taps written as arrays (``index``, ``weight``) and the segments run as running sums."""
+
+    idx: list[int]
+    wts: list[float]
+    segs: tuple[Any, ...]
+    span: int  # the longest delay [samples]
+
+
+@dataclass(frozen=True)
+class _CNames:
+    """What every emitted block of the C header shares: identifiers, precision, direction, sections."""
+
+    name: str
+    prec: str
+    inverse: bool
+    ns: int     # segments run as running sums
+    iir: bool   # an IIR section in parallel
+
+    @property
+    def U(self) -> str:
+        return self.name.upper()
+
+    @property
+    def T(self) -> str:
+        return f"{self.name}_real"
+
+    @property
+    def H(self) -> str:
+        return f"{self.U}_HISTORY"
+
+    @property
+    def at(self) -> str:
+        return f"st->hist[(st->n - (unsigned long)({{k}})) & ({self.H} - 1u)]"
+
+    def lit(self, x: float) -> str:
+        return _lit(x, self.prec)
+
+
+def _c_taps(D: DiscreteShaper, form: str) -> _CTaps:
+    sp = D.sparse
     if form == "sparse":
         idx, wts = sp.index.tolist(), sp.weight.tolist()
         segs = tuple(g for g in sp.segments if not g.omega)
@@ -114,19 +151,19 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
             if g.omega:
                 idx += list(range(g.start, g.stop + 1))
                 wts += g.weights().tolist()
-        span = sp.span
-    else:
-        nz = np.arange(D.n_taps)
-        idx, wts, segs = nz.tolist(), D.taps.tolist(), ()
-        span = D.n_taps - 1
-    hist = 1 << max(1, int(math.ceil(math.log2(span + 2))))
+        return _CTaps(idx, wts, segs, sp.span)
+    nz = np.arange(D.n_taps)
+    return _CTaps(nz.tolist(), D.taps.tolist(), (), D.n_taps - 1)
+
+
+def _c_comment(D: DiscreteShaper, c: _CNames, form: str, st: InverseStability | None) -> list[str]:
     res = "; ".join(f"{r['freq_hz']:.6g} Hz: {100 * r['residual']:.3g} %" for r in _residuals(D)) or "no mode"
-    what = "inverse 1/S" if inverse else "forward S"
-    eq = ("m[n] = (x[n] - sum_{k>=1} w_k m[n-k]) / w_0   (seed 000 eq. 19-20 on the sample grid)" if inverse
+    what = "inverse 1/S" if c.inverse else "forward S"
+    eq = ("m[n] = (x[n] - sum_{k>=1} w_k m[n-k]) / w_0   (seed 000 eq. 19-20 on the sample grid)" if c.inverse
           else "y[n] = sum_k w_k x[n-k]")
     out = [
-        f"/* posicast shaper '{name}' ({what}): {_describe(S)}",
-        f" * sample rate {D.sample_rate:.9g} Hz, fractional delays: {D.fractional}, {form} form, {prec} precision",
+        f"/* posicast shaper '{c.name}' ({what}): {_describe(D.shaper)}",
+        f" * sample rate {D.sample_rate:.9g} Hz, fractional delays: {D.fractional}, {form} form, {c.prec} precision",
         f" * residual vibration after discretisation |S_d(exp(p Ts))| / S_d(1): {res}",
     ]
     if st is not None:
@@ -135,74 +172,93 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
         f" * {eq}",
         " * taps (index k, weight w_k): a delay between samples is split over k and k + 1.",
     ]
-    if segs:
+    if c.ns:
         out.append(" * segments: taps c0 + c1 (k - start) / L on start..stop, L = max(stop - start, 1), run as")
-        out.append(f" * running sums (exact re-summation every {U}_RESYNC samples).")
+        out.append(f" * running sums (exact re-summation every {c.U}_RESYNC samples).")
     if D.b is not None:
         out.append(" * plus an IIR section in parallel (Tustin prewarped at the mode, powers of z^-1, a[0] = 1).")
     out += [
         " * Use: NAME_state s; NAME_init(&s, x0); then y = NAME_step(&s, x) once per sample.",
         " * Example program: gcc -Wall -Werror -DPOSICAST_EXAMPLE_MAIN -x c this_file -o demo",
         " */",
-        "#include <stddef.h>",
-        f"typedef {prec} {T};",
-        f"#define {U}_N_TAPS {len(idx)}",
-        f"#define {U}_HISTORY {hist}u /* power of two > the longest delay, {span} samples */",
-        _array("int", f"{name}_index", idx, str, 8),
-        _array(T, f"{name}_weight", wts, lit),
     ]
-    ns = len(segs)
-    if ns:
+    return out
+
+
+def _c_tables(D: DiscreteShaper, c: _CNames, taps: _CTaps, resync: int) -> list[str]:
+    name, U, T = c.name, c.U, c.T
+    hist = 1 << max(1, int(math.ceil(math.log2(taps.span + 2))))
+    out = [
+        "#include <stddef.h>",
+        f"typedef {c.prec} {T};",
+        f"#define {U}_N_TAPS {len(taps.idx)}",
+        f"#define {U}_HISTORY {hist}u /* power of two > the longest delay, {taps.span} samples */",
+        _array("int", f"{name}_index", taps.idx, str, 8),
+        _array(T, f"{name}_weight", taps.wts, c.lit),
+    ]
+    segs = taps.segs
+    if c.ns:
         out += [
-            f"#define {U}_N_SEGMENTS {ns}",
+            f"#define {U}_N_SEGMENTS {c.ns}",
             f"#define {U}_RESYNC {resync}ul",
             _array("int", f"{name}_seg_start", [g.start for g in segs], str, 8),
             _array("int", f"{name}_seg_stop", [g.stop for g in segs], str, 8),
             _array("double", f"{name}_seg_c0", [g.c0 for g in segs], lambda x: _lit(x, "double")),
             _array("double", f"{name}_seg_c1", [g.c1 for g in segs], lambda x: _lit(x, "double")),
         ]
-    iir = D.b is not None and D.a is not None
-    if iir:
+    if c.iir:
         n = max(D.a.size, D.b.size)
         b, a = np.pad(D.b, (0, n - D.b.size)), np.pad(D.a, (0, n - D.a.size))
         out += [f"#define {U}_IIR_ORDER {n - 1}",
                 _array("double", f"{name}_iir_b", b, lambda x: _lit(x, "double")),
                 _array("double", f"{name}_iir_a", a, lambda x: _lit(x, "double"))]
-    out += ["typedef struct {", f"    {T} hist[{U}_HISTORY];  /* past {'outputs' if inverse else 'inputs'} */",
-            "    unsigned long n;                /* samples so far */"]
-    if ns:
-        out.append(f"    double m0[{U}_N_SEGMENTS], m1[{U}_N_SEGMENTS];")
-    if iir:
-        out.append(f"    double zi[{U}_IIR_ORDER];")
-    out += [f"}} {name}_state;", ""]
-    H = f"{U}_HISTORY"
-    at = f"st->hist[(st->n - (unsigned long)({{k}})) & ({H} - 1u)]"
-    if ns:
-        out += [
-            f"static inline void {name}_exact(const {name}_state *st, int g, double *m0, double *m1) {{",
-            f"    int k, L = {name}_seg_stop[g] - {name}_seg_start[g];",
-            "    double a = 0.0, b = 0.0;",
-            "    if (L < 1) L = 1;",
-            f"    for (k = {name}_seg_start[g]; k <= {name}_seg_stop[g]; ++k) {{",
-            f"        double x = (double){at.format(k='k')};",
-            f"        a += x; b += ((double)(k - {name}_seg_start[g]) / L) * x;",
-            "    }",
-            "    *m0 = a; *m1 = b;",
-            "}",
-            "",
-        ]
-    out += [f"static inline void {name}_init({name}_state *st, {T} x0) {{",
-            "    size_t i;",
-            f"    {T} h = {'x0 / (' + T + ')' + lit(sp.total) if inverse else 'x0'};",
-            f"    for (i = 0; i < {H}; ++i) st->hist[i] = h;",
-            "    st->n = 0;"]
-    if ns:
+    return out
+
+
+def _c_state(c: _CNames) -> list[str]:
+    out = ["typedef struct {", f"    {c.T} hist[{c.U}_HISTORY];  /* past {'outputs' if c.inverse else 'inputs'} */",
+           "    unsigned long n;                /* samples so far */"]
+    if c.ns:
+        out.append(f"    double m0[{c.U}_N_SEGMENTS], m1[{c.U}_N_SEGMENTS];")
+    if c.iir:
+        out.append(f"    double zi[{c.U}_IIR_ORDER];")
+    return out + [f"}} {c.name}_state;", ""]
+
+
+def _c_exact(c: _CNames) -> list[str]:
+    """The exact re-summation of a segment's running sums (when there are segments)."""
+    if not c.ns:
+        return []
+    name = c.name
+    return [
+        f"static inline void {name}_exact(const {name}_state *st, int g, double *m0, double *m1) {{",
+        f"    int k, L = {name}_seg_stop[g] - {name}_seg_start[g];",
+        "    double a = 0.0, b = 0.0;",
+        "    if (L < 1) L = 1;",
+        f"    for (k = {name}_seg_start[g]; k <= {name}_seg_stop[g]; ++k) {{",
+        f"        double x = (double){c.at.format(k='k')};",
+        f"        a += x; b += ((double)(k - {name}_seg_start[g]) / L) * x;",
+        "    }",
+        "    *m0 = a; *m1 = b;",
+        "}",
+        "",
+    ]
+
+
+def _c_init(c: _CNames, total: float) -> list[str]:
+    name, U, T = c.name, c.U, c.T
+    out = [f"static inline void {name}_init({name}_state *st, {T} x0) {{",
+           "    size_t i;",
+           f"    {T} h = {'x0 / (' + T + ')' + c.lit(total) if c.inverse else 'x0'};",
+           f"    for (i = 0; i < {c.H}; ++i) st->hist[i] = h;",
+           "    st->n = 0;"]
+    if c.ns:
         out += [f"    for (i = 0; i < {U}_N_SEGMENTS; ++i) {{",
                 "        st->n = 0ul - 1ul;  /* the window of sample -1 */",
                 f"        {name}_exact(st, (int)i, &st->m0[i], &st->m1[i]);",
                 "    }",
                 "    st->n = 0;"]
-    if iir:
+    if c.iir:
         # lfilter_zi-style steady state of the transposed direct form II for a constant input x0
         out += ["    { double y0 = 0.0, sb = 0.0, sa = 0.0; int j;",
                 f"      for (j = 0; j <= {U}_IIR_ORDER; ++j) {{ sb += {name}_iir_b[j]; sa += {name}_iir_a[j]; }}",
@@ -212,46 +268,67 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
                 f"          for (j = (int)i + 1; j <= {U}_IIR_ORDER; ++j) z += {name}_iir_b[j] * (double)x0 - {name}_iir_a[j] * y0;",
                 "          st->zi[i] = z;",
                 "      } }"]
-    out += ["}", ""]
-    first = 1 if inverse else 0
+    return out + ["}", ""]
+
+
+def _c_step_segments(c: _CNames) -> list[str]:
+    """The running sums of the segments in ``NAME_step`` (exact every ``NAME_RESYNC`` samples)."""
+    if not c.ns:
+        return []
+    name, U, at = c.name, c.U, c.at
+    return [
+        f"    for (i = 0; i < {U}_N_SEGMENTS; ++i) {{",
+        f"        if (st->n > 0ul && st->n % {U}_RESYNC == 0ul) {{",
+        f"            {name}_exact(st, i, &st->m0[i], &st->m1[i]);",
+        "        } else {",
+        f"            int L = {name}_seg_stop[i] - {name}_seg_start[i];",
+        f"            double xs = (double){at.format(k=name + '_seg_start[i]')};",
+        f"            double xe = (double){at.format(k=name + '_seg_stop[i] + 1')};",
+        "            double old = st->m0[i];",
+        "            if (L < 1) L = 1;",
+        "            st->m0[i] = old + (xs - xe);",
+        "            st->m1[i] = st->m1[i] + ((old - xe) / L - xe);",
+        "        }",
+        f"        acc += {name}_seg_c0[i] * st->m0[i] + {name}_seg_c1[i] * st->m1[i];",
+        "    }",
+    ]
+
+
+def _c_step_iir(c: _CNames) -> list[str]:
+    """The IIR section in ``NAME_step`` (when there is one)."""
+    if not c.iir:
+        return []
+    name, U = c.name, c.U
+    return ["    {  /* the IIR section, transposed direct form II */",
+            f"        double yi = {name}_iir_b[0] * (double)x + st->zi[0]; int j;",
+            f"        for (j = 0; j < {U}_IIR_ORDER; ++j)",
+            f"            st->zi[j] = (j + 1 < {U}_IIR_ORDER ? st->zi[j + 1] : 0.0)"
+            f" + {name}_iir_b[j + 1] * (double)x - {name}_iir_a[j + 1] * yi;",
+            "        acc += yi;",
+            "    }"]
+
+
+def _c_step(c: _CNames) -> list[str]:
+    name, U, T, H = c.name, c.U, c.T, c.H
+    first = 1 if c.inverse else 0
     body = [f"static inline {T} {name}_step({name}_state *st, {T} x) {{",
             "    double acc = 0.0;",
             "    int i;"]
-    if not inverse:
+    if not c.inverse:
         body.append(f"    st->hist[st->n & ({H} - 1u)] = x;")
     body += [f"    for (i = {first}; i < {U}_N_TAPS; ++i)",
-             f"        acc += (double){name}_weight[i] * (double){at.format(k=name + '_index[i]')};"]
-    if ns:
-        body += [
-            f"    for (i = 0; i < {U}_N_SEGMENTS; ++i) {{",
-            f"        if (st->n > 0ul && st->n % {U}_RESYNC == 0ul) {{",
-            f"            {name}_exact(st, i, &st->m0[i], &st->m1[i]);",
-            "        } else {",
-            f"            int L = {name}_seg_stop[i] - {name}_seg_start[i];",
-            f"            double xs = (double){at.format(k=name + '_seg_start[i]')};",
-            f"            double xe = (double){at.format(k=name + '_seg_stop[i] + 1')};",
-            "            double old = st->m0[i];",
-            "            if (L < 1) L = 1;",
-            "            st->m0[i] = old + (xs - xe);",
-            "            st->m1[i] = st->m1[i] + ((old - xe) / L - xe);",
-            "        }",
-            f"        acc += {name}_seg_c0[i] * st->m0[i] + {name}_seg_c1[i] * st->m1[i];",
-            "    }",
-        ]
-    if inverse:
+             f"        acc += (double){name}_weight[i] * (double){c.at.format(k=name + '_index[i]')};"]
+    body += _c_step_segments(c)
+    if c.inverse:
         body += [f"    acc = ((double)x - acc) / (double){name}_weight[0];",
                  f"    st->hist[st->n & ({H} - 1u)] = ({T})acc;"]
-    if iir:
-        body += ["    {  /* the IIR section, transposed direct form II */",
-                 f"        double yi = {name}_iir_b[0] * (double)x + st->zi[0]; int j;",
-                 f"        for (j = 0; j < {U}_IIR_ORDER; ++j)",
-                 f"            st->zi[j] = (j + 1 < {U}_IIR_ORDER ? st->zi[j + 1] : 0.0)"
-                 f" + {name}_iir_b[j + 1] * (double)x - {name}_iir_a[j + 1] * yi;",
-                 "        acc += yi;",
-                 "    }"]
-    body += ["    st->n += 1ul;", f"    return ({T})acc;", "}", ""]
-    out += body
-    out += [
+    body += _c_step_iir(c)
+    return body + ["    st->n += 1ul;", f"    return ({T})acc;", "}", ""]
+
+
+def _c_example(c: _CNames) -> list[str]:
+    name, T = c.name, c.T
+    return [
         "#ifdef POSICAST_EXAMPLE_MAIN",
         "#include <stdio.h>",
         "int main(void) {",
@@ -266,6 +343,16 @@ def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStabil
         "}",
         "#endif",
     ]
+
+
+def _c(D: DiscreteShaper, name: str, form: str, inverse: bool, st: InverseStability | None, prec: str,
+       resync: int) -> str:
+    sp = D.sparse
+    assert sp is not None
+    taps = _c_taps(D, form)
+    c = _CNames(name, prec, inverse, len(taps.segs), D.b is not None and D.a is not None)
+    out = (_c_comment(D, c, form, st) + _c_tables(D, c, taps, resync) + _c_state(c) + _c_exact(c)
+           + _c_init(c, sp.total) + _c_step(c) + _c_example(c))
     return "\n".join(out) + "\n"
 
 

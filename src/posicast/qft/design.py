@@ -246,6 +246,203 @@ def _starts(structure: Structure, lo: float, hi: float, center: float,
     return out
 
 
+def _sections(value: Any, name: str) -> Structure:
+    secs = tuple(v.sequence(value, name))
+    for sec in secs:
+        v.choice(sec, f"{name} section", tuple(SECTIONS))
+    return Structure(secs)
+
+
+def _controller_structure(structure: Any) -> Structure:
+    st = _sections(structure, "structure")
+    if st.relative_degree < 0:
+        raise ValueError(f"structure must give a proper controller (relative degree >= 0), got "
+                         f"{st.relative_degree} for {st.sections}: add poles")
+    return st
+
+
+def _prefilter_parts(prefilter: Any, prefilter_structure: Any) -> tuple[TransferFunction | None, Structure | None]:
+    """The fixed prefilter ``F`` or the structure of a synthesised ``F_c`` (at most one of them)."""
+    F = None if prefilter is None else as_transfer(prefilter, "prefilter")
+    stF = None
+    if prefilter_structure is not None:
+        if prefilter is not None:
+            raise ValueError("prefilter_structure must not be given with a fixed prefilter")
+        stF = _sections(prefilter_structure, "prefilter_structure")
+        if stF.relative_degree < 0:
+            raise ValueError(f"prefilter_structure must be proper (relative degree >= 0), got {stF.relative_degree}")
+    if F is not None:
+        num, den = F.to_scipy().num, F.to_scipy().den
+        if F.has_delays or len(np.trim_zeros(num, "f")) > len(np.trim_zeros(den, "f")):
+            raise ValueError("prefilter must be a proper, delay-free transfer function")
+    return F, stF
+
+
+@dataclass(frozen=True)
+class _QFTProblem:
+    """The checked specification of :func:`qft_design` and the grids, bounds and starts' scale built from it."""
+
+    ps: PlantSet
+    ref: TransferFunction
+    gamma: float
+    delta: float
+    st: Structure
+    F: TransferFunction | None
+    stF: Structure | None
+    freqs: np.ndarray
+    dist: Any
+    margin: float
+    refinements: int
+    maxiter: int
+    w_lo: float
+    w_hi: float
+    grid: np.ndarray    # the first design grid
+    dense: np.ndarray   # the check's grid
+    polys: Any
+    center: float       # the reference's pole scale
+    bounds: Any
+    nG: int             # the controller's parameters (then F_c's)
+
+
+def _qft_problem(plants: Any, reference: Any, stability: Any, matching: Any, frequencies: Any, structure: Any,
+                 prefilter: Any, prefilter_structure: Any, disturbance: Any, stability_margin: Any,
+                 refinements: Any, maxiter: Any) -> _QFTProblem:
+    ps = plants if isinstance(plants, PlantSet) else PlantSet.from_list(v.sequence(plants, "plants"))
+    ref = as_transfer(reference, "reference")
+    if ref.has_delays:
+        raise ValueError("reference must be delay-free (rational)")
+    gamma = _check_spec(stability, "stability")
+    delta = _check_spec(matching, "matching")
+    st = _controller_structure(structure)
+    F, stF = _prefilter_parts(prefilter, prefilter_structure)
+    freqs = _frequencies(frequencies)
+    dist = disturbance_spec(disturbance)
+    margin = v.nonnegative(stability_margin, "stability_margin")
+    refinements = v.integer_in_range(refinements, "refinements", 0, 20)
+    maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
+    return _QFTProblem(ps, ref, gamma, delta, st, F, stF, freqs, dist, margin, refinements, maxiter,
+                       *_grids(ps, ref, freqs, st, stF))
+
+
+def _grids(ps: PlantSet, ref: TransferFunction, freqs: np.ndarray, st: Structure,
+           stF: Structure | None) -> tuple[Any, ...]:
+    """``(w_lo, w_hi, grid, dense, polys, center, bounds, nG)`` of :class:`_QFTProblem`."""
+    lo, hi = _feature_range(ps, ref)
+    w_lo, w_hi = min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30
+    grid = np.union1d(dense_grid(w_lo, w_hi, 60), freqs)
+    polys = ps.polynomials()
+    rden = np.trim_zeros(np.asarray(ref.to_scipy().den, float), "f")
+    center = float(abs(rden[-1] / rden[0]) ** (1.0 / max(1, rden.size - 1)))  # the reference's pole scale
+    if not (np.isfinite(center) and center > 0):
+        center = float(np.sqrt(lo * hi))
+    bounds = st.bounds(w_lo / 10, w_hi * 10)
+    nG = st.n_params
+    if stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
+        bounds = bounds + [(0.0, 0.0)] + stF.bounds(w_lo / 10, w_hi * 10)[1:]
+    dense = dense_grid(w_lo, w_hi, 1000)
+    return w_lo, w_hi, grid, dense, polys, center, bounds, nG
+
+
+def _prefilter_at(p: _QFTProblem, x: np.ndarray, s_: np.ndarray) -> np.ndarray | None:
+    if p.stF is None:
+        return None
+    fn, fd = p.stF.polynomials(x[p.nG:])
+    return p.ref.freqresp(s_.imag) * np.polyval(fn, s_) / np.polyval(fd, s_)
+
+
+def _constraints(p: _QFTProblem, data: SpecData, grid_: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The bounds as ``>= 0`` constraints (log margins on ``grid_``, then the inner loops' abscissae)."""
+    s = 1j * grid_
+    num, den = p.st.polynomials(x[:p.nG])
+    T, E, S = data.values(np.polyval(num, s) / np.polyval(den, s), _prefilter_at(p, x, s) if p.stF else None)
+    ab = -p.margin - _abscissae(p.polys, num, den)
+    # the worst plant at each frequency, with a back-off so that the dense check passes between points
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        parts = [np.log(p.gamma * _BACKOFF) - np.log(T.max(0)), np.log(p.delta * _BACKOFF) - np.log(E.max(0))]
+        if p.dist is not None:
+            parts.append((np.log(p.dist[0] * _BACKOFF) - np.log(S.max(0)))[grid_ <= p.dist[1]])
+        out = np.concatenate(parts + [np.atleast_1d(ab)])
+    return np.nan_to_num(out, nan=-1e6, posinf=1e6, neginf=-1e6)
+
+
+def _gain_raised(cons: Any, x0: np.ndarray, n_grid: int) -> np.ndarray:
+    """The gain that meets the matching bound at the nominal plant, a feasible-leaning start."""
+    x0 = x0.copy()
+    for _ in range(60):
+        with np.errstate(all="ignore"):
+            ok = np.min(cons(x0)[: 2 * n_grid]) > -0.5
+        if ok or x0[0] > 25:
+            break
+        x0[0] += 0.5
+    return x0
+
+
+def _solve(p: _QFTProblem, grid_: np.ndarray, starts: list[np.ndarray]) -> tuple[np.ndarray | None, float]:
+    """The lowest-cost feasible SLSQP result over ``starts`` on ``grid_`` (None if none is feasible)."""
+    data = SpecData.at(p.ps, p.ref, p.F, grid_)
+
+    def cons(x: np.ndarray) -> np.ndarray:
+        return _constraints(p, data, grid_, x)
+
+    def cost(x: np.ndarray) -> float:
+        return float(np.log(p.st.high_frequency_gain(x[:p.nG])))
+
+    best, best_cost = None, np.inf
+    for x0 in starts:
+        x0 = _gain_raised(cons, x0, grid_.size)
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore", RuntimeWarning)
+            res = minimize(cost, x0, method="SLSQP", bounds=p.bounds,
+                           constraints=[{"type": "ineq", "fun": cons}],
+                           options={"maxiter": p.maxiter, "ftol": 1e-9})
+        if np.all(np.isfinite(res.x)) and np.min(cons(res.x)) >= -1e-6 and cost(res.x) < best_cost:
+            best, best_cost = res.x, cost(res.x)
+    return best, best_cost
+
+
+def _dense_violations(p: _QFTProblem, x: np.ndarray) -> np.ndarray:
+    """Where on the dense grid a bound fails for the design ``x``."""
+    G = p.st.transfer(x[:p.nG])
+    data = SpecData.at(p.ps, p.ref, p.F, p.dense)
+    T, E, S = data.values(G.freqresp(p.dense), _prefilter_at(p, x, 1j * p.dense) if p.stF else None)
+    bad = (T.max(0) > p.gamma) | (E.max(0) > p.delta)
+    if p.dist is not None:
+        bad |= (S.max(0) > p.dist[0]) & (p.dense <= p.dist[1])
+    return bad
+
+
+def _refined(p: _QFTProblem) -> np.ndarray:
+    """The design, redesigned with the dense check's failing frequencies added (``refinements`` times at most)."""
+    grid = p.grid
+    x_best = None
+    for _ in range(p.refinements + 1):  # a refinement starts from the previous design
+        x_new, _c = _solve(p, grid, _starts(p.st, p.w_lo, p.w_hi, p.center, p.stF) if x_best is None else [x_best])
+        if x_new is None:
+            break
+        x_best = x_new
+        bad = _dense_violations(p, x_best)
+        if not bad.any():
+            break
+        grid = np.union1d(grid, p.dense[bad][:: max(1, int(bad.sum()) // 40)])
+    if x_best is None:  # no start converged to a feasible point: report the closest attempt
+        x_best = _starts(p.st, p.w_lo, p.w_hi, p.center, p.stF)[0]
+    return x_best
+
+
+def _qft_result(p: _QFTProblem, x_best: np.ndarray) -> QFTResult:
+    st, stF, nG, ref, F = p.st, p.stF, p.nG, p.ref, p.F
+    G = st.transfer(x_best[:nG])
+    if stF is not None:
+        F = ref * stF.transfer(x_best[nG:])
+    Ffin = ref if F is None else F
+    chk = verify(p.ps, G, F, ref, p.gamma, p.delta, p.dense, p.dist)
+    params = st.parameters(x_best[:nG])
+    if stF is not None:
+        params.update({f"F.{k}": val for k, val in stF.parameters(x_best[nG:]).items() if k != "K"})
+    return QFTResult(G, Ffin, chk.ok, chk.margins, chk.violated, st.high_frequency_gain(x_best[:nG]),
+                     params, chk, p.ps, ref, (p.gamma, p.delta), p.freqs, p.dist)
+
+
 def qft_design(
     plants: Any,
     reference: Any,
@@ -304,122 +501,6 @@ def qft_design(
     >>> r.feasible, r.margins["matching"] >= 0.0
     (True, True)
     """
-    ps = plants if isinstance(plants, PlantSet) else PlantSet.from_list(v.sequence(plants, "plants"))
-    ref = as_transfer(reference, "reference")
-    if ref.has_delays:
-        raise ValueError("reference must be delay-free (rational)")
-    gamma = _check_spec(stability, "stability")
-    delta = _check_spec(matching, "matching")
-    secs = tuple(v.sequence(structure, "structure"))
-    for sec in secs:
-        v.choice(sec, "structure section", tuple(SECTIONS))
-    st = Structure(secs)
-    if st.relative_degree < 0:
-        raise ValueError(f"structure must give a proper controller (relative degree >= 0), got "
-                         f"{st.relative_degree} for {st.sections}: add poles")
-    F = None if prefilter is None else as_transfer(prefilter, "prefilter")
-    stF = None
-    if prefilter_structure is not None:
-        if prefilter is not None:
-            raise ValueError("prefilter_structure must not be given with a fixed prefilter")
-        fsecs = tuple(v.sequence(prefilter_structure, "prefilter_structure"))
-        for sec in fsecs:
-            v.choice(sec, "prefilter_structure section", tuple(SECTIONS))
-        stF = Structure(fsecs)
-        if stF.relative_degree < 0:
-            raise ValueError(f"prefilter_structure must be proper (relative degree >= 0), got {stF.relative_degree}")
-    if F is not None:
-        num, den = F.to_scipy().num, F.to_scipy().den
-        if F.has_delays or len(np.trim_zeros(num, "f")) > len(np.trim_zeros(den, "f")):
-            raise ValueError("prefilter must be a proper, delay-free transfer function")
-    freqs = _frequencies(frequencies)
-    dist = disturbance_spec(disturbance)
-    margin = v.nonnegative(stability_margin, "stability_margin")
-    refinements = v.integer_in_range(refinements, "refinements", 0, 20)
-    maxiter = v.integer_in_range(maxiter, "maxiter", 1, 100_000)
-
-    lo, hi = _feature_range(ps, ref)
-    w_lo, w_hi = min(lo, freqs.min()) / 30, max(hi, freqs.max()) * 30
-    grid = np.union1d(dense_grid(w_lo, w_hi, 60), freqs)
-    polys = ps.polynomials()
-    rden = np.trim_zeros(np.asarray(ref.to_scipy().den, float), "f")
-    center = float(abs(rden[-1] / rden[0]) ** (1.0 / max(1, rden.size - 1)))  # the reference's pole scale
-    if not (np.isfinite(center) and center > 0):
-        center = float(np.sqrt(lo * hi))
-    bounds = st.bounds(w_lo / 10, w_hi * 10)
-    nG = st.n_params
-    if stF is not None:  # F_c's gain is fixed at 1 (unit DC gain: the reference model's)
-        bounds = bounds + [(0.0, 0.0)] + stF.bounds(w_lo / 10, w_hi * 10)[1:]
-    dense = dense_grid(w_lo, w_hi, 1000)
-
-    def prefilter_at(x: np.ndarray, s_: np.ndarray) -> np.ndarray | None:
-        if stF is None:
-            return None
-        fn, fd = stF.polynomials(x[nG:])
-        return ref.freqresp(s_.imag) * np.polyval(fn, s_) / np.polyval(fd, s_)
-
-    def solve(grid_: np.ndarray, starts: list[np.ndarray]) -> tuple[np.ndarray | None, float]:
-        data = SpecData.at(ps, ref, F, grid_)
-        s = 1j * grid_
-
-        def cons(x: np.ndarray) -> np.ndarray:
-            num, den = st.polynomials(x[:nG])
-            T, E, S = data.values(np.polyval(num, s) / np.polyval(den, s), prefilter_at(x, s) if stF else None)
-            ab = -margin - _abscissae(polys, num, den)
-            # the worst plant at each frequency, with a back-off so that the dense check passes between points
-            with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-                parts = [np.log(gamma * _BACKOFF) - np.log(T.max(0)), np.log(delta * _BACKOFF) - np.log(E.max(0))]
-                if dist is not None:
-                    parts.append((np.log(dist[0] * _BACKOFF) - np.log(S.max(0)))[grid_ <= dist[1]])
-                out = np.concatenate(parts + [np.atleast_1d(ab)])
-            return np.nan_to_num(out, nan=-1e6, posinf=1e6, neginf=-1e6)
-
-        def cost(x: np.ndarray) -> float:
-            return float(np.log(st.high_frequency_gain(x[:nG])))
-
-        best, best_cost = None, np.inf
-        for x0 in starts:
-            # the gain that meets the matching bound at the nominal plant, a feasible-leaning start
-            x0 = x0.copy()
-            for _ in range(60):
-                with np.errstate(all="ignore"):
-                    ok = np.min(cons(x0)[: 2 * grid_.size]) > -0.5
-                if ok or x0[0] > 25:
-                    break
-                x0[0] += 0.5
-            with warnings.catch_warnings(), np.errstate(all="ignore"):
-                warnings.simplefilter("ignore", RuntimeWarning)
-                res = minimize(cost, x0, method="SLSQP", bounds=bounds,
-                               constraints=[{"type": "ineq", "fun": cons}],
-                               options={"maxiter": maxiter, "ftol": 1e-9})
-            if np.all(np.isfinite(res.x)) and np.min(cons(res.x)) >= -1e-6 and cost(res.x) < best_cost:
-                best, best_cost = res.x, cost(res.x)
-        return best, best_cost
-
-    x_best = None
-    for _ in range(refinements + 1):  # a refinement starts from the previous design
-        x_new, _c = solve(grid, _starts(st, w_lo, w_hi, center, stF) if x_best is None else [x_best])
-        if x_new is None:
-            break
-        x_best = x_new
-        G = st.transfer(x_best[:nG])
-        data = SpecData.at(ps, ref, F, dense)
-        T, E, S = data.values(G.freqresp(dense), prefilter_at(x_best, 1j * dense) if stF else None)
-        bad = (T.max(0) > gamma) | (E.max(0) > delta)
-        if dist is not None:
-            bad |= (S.max(0) > dist[0]) & (dense <= dist[1])
-        if not bad.any():
-            break
-        grid = np.union1d(grid, dense[bad][:: max(1, int(bad.sum()) // 40)])
-    if x_best is None:  # no start converged to a feasible point: report the closest attempt
-        x_best = _starts(st, w_lo, w_hi, center, stF)[0]
-    G = st.transfer(x_best[:nG])
-    if stF is not None:
-        F = ref * stF.transfer(x_best[nG:])
-    Ffin = ref if F is None else F
-    chk = verify(ps, G, F, ref, gamma, delta, dense, dist)
-    params = st.parameters(x_best[:nG])
-    if stF is not None:
-        params.update({f"F.{k}": val for k, val in stF.parameters(x_best[nG:]).items() if k != "K"})
-    return QFTResult(G, Ffin, chk.ok, chk.margins, chk.violated, st.high_frequency_gain(x_best[:nG]),
-                     params, chk, ps, ref, (gamma, delta), freqs, dist)
+    p = _qft_problem(plants, reference, stability, matching, frequencies, structure, prefilter,
+                     prefilter_structure, disturbance, stability_margin, refinements, maxiter)
+    return _qft_result(p, _refined(p))

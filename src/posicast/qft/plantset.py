@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -36,6 +36,56 @@ from ..core.transfer import TransferFunction, as_transfer
 __all__ = ["PlantSet"]
 
 _METHODS = ("grid", "vertices", "random")
+
+
+class _Box(NamedTuple):
+    """Checked parameter ranges of :meth:`PlantSet.from_ranges` and the nominal point."""
+
+    names: tuple[str, ...]
+    lows: dict[str, float]
+    highs: dict[str, float]
+    nominal: dict[str, float]
+
+
+def _box(ranges: Any, nominal: Any) -> _Box:
+    lows, highs = {}, {}
+    for name, rng in ranges.items():
+        lo, hi = v.pair(rng, f"ranges[{name!r}]")
+        lows[name] = v.real(lo, f"ranges[{name!r}] low")
+        highs[name] = v.real(hi, f"ranges[{name!r}] high")
+        if lows[name] > highs[name]:
+            raise ValueError(f"ranges[{name!r}] must have low <= high, got ({lo:g}, {hi:g})")
+    names = tuple(ranges)
+    nom = {k: 0.5 * (lows[k] + highs[k]) for k in names}
+    if nominal is not None:
+        if not isinstance(nominal, Mapping):
+            raise TypeError(f"nominal must be a mapping name -> value, got {type(nominal).__name__}")
+        for k, val in dict(nominal).items():
+            v.choice(k, "nominal parameter", names)
+            nom[k] = v.real(val, f"nominal[{k!r}]")
+    return _Box(names, lows, highs, nom)
+
+
+def _draws(box: _Box, method: str, n: Any, samples: Any, seed: Any) -> list[dict[str, float]]:
+    """The parameter sets: the nominal and uniform draws (``"random"``), else the grid or the vertices."""
+    names, lows, highs = box.names, box.lows, box.highs
+    if method == "random":
+        count = v.integer(samples, "samples", 1)
+        v.refuse_large(count, 10_000, "random plants", "samples")
+        rng_ = np.random.default_rng(v.integer(seed, "seed", 0))
+        return [dict(box.nominal)] + [{k: float(lows[k] + (highs[k] - lows[k]) * rng_.random()) for k in names}
+                                      for _ in range(count)]
+    m = 2 if method == "vertices" else v.integer(n, "n", 2)
+    v.refuse_large(float(m) ** len(names), 10_000, "grid plants", "n or the number of parameters")
+    axes = [np.linspace(lows[k], highs[k], m) for k in names]
+    return [dict(zip(names, map(float, p))) for p in itertools.product(*axes)]
+
+
+def _nearest_nominal(box: _Box, draws: list[dict[str, float]]) -> int:
+    """The draw nearest to the nominal point, each parameter scaled by its range."""
+    scale = {k: (box.highs[k] - box.lows[k]) or 1.0 for k in box.names}
+    dist = [sum(((p[k] - box.nominal[k]) / scale[k]) ** 2 for k in box.names) for p in draws]
+    return int(np.argmin(dist))
 
 
 @dataclass(frozen=True)
@@ -151,36 +201,10 @@ class PlantSet:
         if not isinstance(ranges, Mapping) or not ranges:
             raise ValueError(f"ranges must be a non-empty mapping name -> (low, high), got {ranges!r}")
         method = v.choice(method, "method", _METHODS)
-        lows, highs = {}, {}
-        for name, rng in ranges.items():
-            lo, hi = v.pair(rng, f"ranges[{name!r}]")
-            lows[name] = v.real(lo, f"ranges[{name!r}] low")
-            highs[name] = v.real(hi, f"ranges[{name!r}] high")
-            if lows[name] > highs[name]:
-                raise ValueError(f"ranges[{name!r}] must have low <= high, got ({lo:g}, {hi:g})")
-        names = tuple(ranges)
-        nom = {k: 0.5 * (lows[k] + highs[k]) for k in names}
-        if nominal is not None:
-            if not isinstance(nominal, Mapping):
-                raise TypeError(f"nominal must be a mapping name -> value, got {type(nominal).__name__}")
-            for k, val in dict(nominal).items():
-                v.choice(k, "nominal parameter", names)
-                nom[k] = v.real(val, f"nominal[{k!r}]")
-        if method == "random":
-            count = v.integer(samples, "samples", 1)
-            v.refuse_large(count, 10_000, "random plants", "samples")
-            rng_ = np.random.default_rng(v.integer(seed, "seed", 0))
-            draws = [dict(nom)] + [{k: float(lows[k] + (highs[k] - lows[k]) * rng_.random()) for k in names}
-                                   for _ in range(count)]
-        else:
-            m = 2 if method == "vertices" else v.integer(n, "n", 2)
-            v.refuse_large(float(m) ** len(names), 10_000, "grid plants", "n or the number of parameters")
-            axes = [np.linspace(lows[k], highs[k], m) for k in names]
-            draws = [dict(zip(names, map(float, p))) for p in itertools.product(*axes)]
+        box = _box(ranges, nominal)
+        draws = _draws(box, method, n, samples, seed)
         plants = tuple(as_transfer(model(**p), "model(...)") for p in draws)
-        scale = {k: (highs[k] - lows[k]) or 1.0 for k in names}
-        dist = [sum(((p[k] - nom[k]) / scale[k]) ** 2 for k in names) for p in draws]
-        return cls(plants, int(np.argmin(dist)), tuple(draws))
+        return cls(plants, _nearest_nominal(box, draws), tuple(draws))
 
     @classmethod
     def two_mass(cls, uncertainty: float = 50.0, **kwargs: Any) -> PlantSet:

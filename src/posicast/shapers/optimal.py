@@ -37,7 +37,7 @@ import math
 import time
 from dataclasses import dataclass
 from itertools import product
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import numpy as np
 from scipy.optimize import minimize
@@ -230,6 +230,30 @@ def _amplitudes_at(prob: _Problem, u: np.ndarray, A_start: np.ndarray | None = N
     return float(np.sqrt(np.max(v2(A)[0]))), A
 
 
+def _stretched_roundings(prob: _Problem, u: np.ndarray, step: float, D: float) -> list[np.ndarray]:
+    """Grid indices of the times stretched to ``D``: the floor/ceil roundings (up to 64, else the nearest)
+    that the LP screen passes, shortest first (then least LP vibration), at most 4."""
+    k = u * (D / u[-1]) / step if u[-1] > 0 else u / step
+    inner = k[1:]
+    choices = [np.unique(np.array([np.floor(x), np.ceil(x)])) for x in inner]
+    combos = list(product(*choices)) if np.prod([c.size for c in choices]) <= 64 else [tuple(np.round(inner))]
+    screened = []
+    for c in combos:
+        kk = np.unique(np.concatenate([[0.0], np.array(c, dtype=float)]))
+        s_lp, _ = _amplitudes_at(prob, kk * step, exact=False)
+        if s_lp <= prob.vtol:  # the LP's value is a lower bound of the exact one
+            screened.append((kk[-1], s_lp, kk))
+    return [kk for _, _, kk in sorted(screened, key=lambda c: (c[0], c[1]))[:4]]
+
+
+def _meets_on_grid(prob: _Problem, s_ex: float, uu: np.ndarray, AA: np.ndarray) -> bool:
+    """The exact worst ``V`` within tolerance, confirmed at the peaks of the dense grid."""
+    if s_ex > prob.vtol * (1 + 1e-9):
+        return False
+    pk = _peaks(prob, uu, AA, prob.vtol * 0.9)
+    return max(p[3] for p in pk) <= prob.vtol * (1 + 1e-6)
+
+
 def _on_grid(prob: _Problem, u: np.ndarray, A: np.ndarray, step: float,
              u_cap: float) -> tuple[np.ndarray, np.ndarray, bool]:
     """Times rounded to multiples of ``step`` (scaled units), amplitudes re-solved; stretched until feasible.
@@ -241,26 +265,14 @@ def _on_grid(prob: _Problem, u: np.ndarray, A: np.ndarray, step: float,
         D = u[-1] + stretch * step
         if D > u_cap + step or (stretch and prob.late()):
             break
-        k = u * (D / u[-1]) / step if u[-1] > 0 else u / step
-        inner = k[1:]
-        choices = [np.unique(np.array([np.floor(x), np.ceil(x)])) for x in inner]
-        combos = list(product(*choices)) if np.prod([c.size for c in choices]) <= 64 else [tuple(np.round(inner))]
-        screened = []
-        for c in combos:
-            kk = np.unique(np.concatenate([[0.0], np.array(c, dtype=float)]))
-            s_lp, _ = _amplitudes_at(prob, kk * step, exact=False)
-            if s_lp <= prob.vtol:  # the LP's value is a lower bound of the exact one
-                screened.append((kk[-1], s_lp, kk))
-        for _, _, kk in sorted(screened, key=lambda c: (c[0], c[1]))[:4]:
+        for kk in _stretched_roundings(prob, u, step, D):
             uu = kk * step
             s_ex, AA = _amplitudes_at(prob, uu, A if kk.size == A.size else None)
             if best is None or s_ex < best[0]:
                 best = (s_ex, uu, AA)
-            if s_ex <= prob.vtol * (1 + 1e-9):
-                pk = _peaks(prob, uu, AA, prob.vtol * 0.9)
-                if max(p[3] for p in pk) <= prob.vtol * (1 + 1e-6):
-                    keep = AA > 1e-12
-                    return uu[keep], AA[keep] / AA[keep].sum(), True
+            if _meets_on_grid(prob, s_ex, uu, AA):
+                keep = AA > 1e-12
+                return uu[keep], AA[keep] / AA[keep].sum(), True
     if best is None:
         kk = np.unique(np.round(u / step))
         s_ex, AA = _amplitudes_at(prob, kk * step, A if kk.size == A.size else None)
@@ -291,6 +303,175 @@ def _per_mode(value: Any, n: int, name: str, lo: float, hi: float, default: Any,
         raise ValueError(f"{name} must be one (low, high) pair or one pair per mode ({n}), got {len(value)} pairs")
     p = v.ordered_pair(value, name, lo, hi, **kw)
     return (p,) * n
+
+
+class _Spec(NamedTuple):
+    """The checked arguments of :func:`shortest_shaper`."""
+
+    modes: tuple[Mode, ...]
+    vtol: float
+    bands: tuple[tuple[float, float], ...]
+    damps: tuple[tuple[float, float], ...]
+    n_max: int | None   # max_impulses
+    ts: float | None    # sample_period [s]
+    dmax: float | None  # max_duration [s]
+
+
+class _Search(NamedTuple):
+    """The duration search's grid and limits, in scaled time units."""
+
+    h: float        # LP grid step
+    k_cap: int      # most grid steps searched
+    u_cap: float    # longest duration searched
+
+
+def _shortest_spec(modes: Any, vtol: Any, band: Any, damping: Any, max_impulses: Any, sample_period: Any,
+                   max_duration: Any, certify: Any, name: Any) -> _Spec:
+    ms = _as_modes(modes)
+    if len(ms) > _MAX_MODES:
+        raise ValueError(f"modes must be at most {_MAX_MODES} modes (each adds a band to every LP), got {len(ms)}: "
+                         "design for the modes that matter, or in groups")
+    tol = v.real_in_range(vtol, "vtol", 1e-6, 1.0, hi_open=True, hint=" (below 1e-6 the constraints are rounding)")
+    bands = _per_mode(band, len(ms), "band", 0.0, 1000.0, None, lo_open=True)
+    damps = _per_mode(damping, len(ms), "damping", 0.0, 1.0, [(m.zeta, m.zeta) for m in ms], hi_open=True)
+    n_max = None if max_impulses is None else v.integer_in_range(max_impulses, "max_impulses", 2, 1000)
+    ts = None if sample_period is None else v.positive(v.finite_real(sample_period, "sample_period"), "sample_period")
+    dmax = None if max_duration is None else v.positive(v.finite_real(max_duration, "max_duration"), "max_duration")
+    v.instance_of(certify, bool, "certify", "True or False")
+    v.instance_of(name, str, "name", "a string")
+    return _Spec(ms, tol, bands, damps, n_max, ts, dmax)
+
+
+def _search_limits(spec: _Spec, scale: float) -> _Search:
+    h = 2 * math.pi / _GRID_PER_PERIOD
+    dmax = spec.dmax
+    k_cap = _MAX_GRID if dmax is None else max(2, min(_MAX_GRID, int(math.floor(dmax * scale / h))))
+    u_cap = (dmax * scale) if dmax is not None else k_cap * h
+    return _Search(h, k_cap, u_cap)
+
+
+def _least_vibration(prob: _Problem, spec: _Spec, lim: _Search, A_grid: np.ndarray, s_cap: float, k_done: int,
+                     notes: list[str]) -> tuple[np.ndarray, np.ndarray, bool]:
+    """No positive shaper within the cap: the least-vibration grid shaper there, and why."""
+    u, A = _clusters(np.arange(k_done + 1) * lim.h, A_grid)
+    tol, scale = spec.vtol, prob.scale
+    if prob.late():
+        notes.append(f"the duration search stopped at the time budget ({_BUDGET:g} s) at {k_done * lim.h / scale:.6g} s "
+                     f"(least polygon vibration there {s_cap:.4g} > vtol {tol:g})")
+    elif k_done >= lim.k_cap:
+        notes.append(f"no positive shaper of duration <= {lim.u_cap / scale:.6g} s keeps V <= {tol:g} on the "
+                     f"bands (least polygon vibration there {s_cap:.4g})")
+    else:
+        notes.append(f"the search stopped at duration {k_done * lim.h / scale:.6g} s (least polygon vibration "
+                     f"there {s_cap:.4g} > vtol {tol:g}): a longer LP would exceed {_MAX_LP:g} entries; "
+                     "narrow the bands or raise vtol")
+    if spec.n_max is not None and u.size > spec.n_max:
+        u, A = _merge_to(u, A, spec.n_max)
+    return u, A, False
+
+
+def _polished(prob: _Problem, u: np.ndarray, A: np.ndarray, ok: bool) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The grid shaper's polish, replaced by a closed form's when that is shorter, then re-polished."""
+    for u0, A0 in _closed_form_starts(prob):  # a closed form meeting the bands bounds the duration
+        if not ok or u0[-1] < u[-1] * (1 - 1e-9):
+            u1, A1, _ = _exchange(prob, u0, A0) if not prob.late() else (u0, A0, True)  # the start meets
+            if not ok or u1[-1] < u[-1]:                                                 # the bands
+                u, A, ok = u1, A1, True
+    for _ in range(2):  # re-polish from the result while it is not a KKT point (SLSQP can stall near
+        if not ok or prob.late() or _kkt(prob, u, A, _peaks(prob, u, A, prob.vtol * 0.5)) <= 1e-5:  # degenerate
+            break
+        u1, A1, ok1 = _exchange(prob, u, A)
+        if not (ok1 and u1[-1] < u[-1] * (1 - 1e-12)):
+            break
+        u, A = u1, A1
+    return u, A, ok
+
+
+def _shortest_found(prob: _Problem, spec: _Spec, lim: _Search, K: int, A_grid: np.ndarray,
+                    notes: list[str]) -> tuple[np.ndarray, np.ndarray, bool]:
+    """A positive grid shaper of ``K`` steps meets the bands: polished, then limited to ``max_impulses``."""
+    u, A, ok = _polished(prob, *_exchange(prob, *_clusters(np.arange(K + 1) * lim.h, A_grid)))
+    if not ok:
+        notes.append("the polish did not reach a shaper meeting the bands on the dense grid")
+    n_max = spec.n_max
+    if n_max is not None and u.size > n_max:
+        search_cap = min(lim.u_cap, 4.0 * u[-1])  # fewer impulses: searched up to 4x the unlimited optimum
+        u, A, ok = _limited(prob, u, A, n_max, K * lim.h * 0.9, search_cap)
+        if not ok:
+            notes.append(f"the search found no shaper of {n_max} impulses keeping V <= {spec.vtol:g} on the bands "
+                         f"within {search_cap / prob.scale:.6g} s (4x the unlimited optimum; a local search, not a "
+                         "proof); this is the least-vibration shaper found")
+    return u, A, ok
+
+
+def _on_sample_grid(prob: _Problem, spec: _Spec, u_cap: float, u: np.ndarray, A: np.ndarray, ok: bool,
+                    notes: list[str]) -> tuple[np.ndarray, np.ndarray, bool]:
+    """A feasible shaper's times moved to the ``sample_period`` grid (when one is asked and it can be)."""
+    ts, scale = spec.ts, prob.scale
+    if not ok or ts is None:
+        return u, A, ok
+    if ts * scale > u_cap:
+        notes.append(f"sample_period={ts:g} s is longer than the longest shaper searched ({u_cap / scale:.6g} s)")
+        return u, A, False
+    if ts * scale < TIME_RESOLUTION * u[-1]:
+        notes.append(f"sample_period={ts:g} s is below the time resolution ({TIME_RESOLUTION:g} x duration): "
+                     "the times are left as designed")
+        return u, A, ok
+    u, A, ok = _on_grid(prob, u, A, ts * scale, u_cap)
+    if not ok:
+        notes.append(f"no shaper on the {ts:g} s sample grid within the limits keeps V <= {spec.vtol:g}; "
+                     "this is the least-vibration one found")
+    elif spec.n_max is not None and u.size > spec.n_max:  # pragma: no cover - rounding never adds impulses
+        ok = False
+    return u, A, ok
+
+
+def _within_duration(prob: _Problem, spec: _Spec, u_cap: float, u: np.ndarray, ok: bool, notes: list[str]) -> bool:
+    """``ok`` unless the shaper outlasts ``max_duration``; the time-budget note."""
+    if ok and spec.dmax is not None and u[-1] > u_cap * (1 + 1e-9):
+        ok = False
+        notes.append(f"the shortest shaper lasts {u[-1] / prob.scale:.6g} s, more than max_duration={spec.dmax:g} s")
+    if prob.late():
+        notes.append(f"the searches stopped at the time budget ({_BUDGET:g} s) with the best shaper found")
+    return ok
+
+
+def _kkt_status(prob: _Problem, u: np.ndarray, A: np.ndarray, pk: Any, feasible: bool,
+                ts: float | None) -> tuple[float | None, str]:
+    """The KKT residual (off the sample grid; None when not finite) and the status it gives."""
+    kkt = _kkt(prob, u, A, pk) if feasible and ts is None else None
+    kkt = kkt if kkt is not None and math.isfinite(kkt) else None
+    status = "infeasible" if not feasible else ("optimal" if kkt is not None and kkt <= 1e-5 else "feasible")
+    return kkt, status
+
+
+def _optimality(prob: _Problem, spec: _Spec, h: float, u: np.ndarray, A: np.ndarray, ok: bool, certify: bool,
+                notes: list[str]) -> Optimality:
+    """The certificate of the final shaper (``u`` in scaled units): peaks, KKT residual, lower bound."""
+    tol, ts, scale = spec.vtol, spec.ts, prob.scale
+    pk = _peaks(prob, u, A, tol * 0.5)
+    worst = max(p[3] for p in pk)
+    feasible = ok and worst <= tol * (1 + 1e-6)
+    kkt, status = _kkt_status(prob, u, A, pk, feasible, ts)
+    lb = _lower_bound(prob, int(math.floor(u[-1] / h))) / scale if certify and feasible else 0.0
+    if feasible and status == "feasible" and ts is None:
+        notes.append(f"the solver stopped at a feasible point whose KKT residual {kkt:.2g} is above 1e-5")
+    active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= tol * (1 - 1e-5))
+    times = u / scale
+    if times.size >= 2:  # a mode too fast for seconds as the time unit: refused as design() refuses it
+        check_resolution(float(times[-1]), float(times[-1]),
+                         f"an optimal shaper for omega up to {scale:g} rad/s")
+    return Optimality(feasible, status, tol, worst, float(times[-1]), min(lb, float(times[-1])), int(times.size),
+                      active, kkt, " ".join(notes))
+
+
+def _shortest_params(spec: _Spec) -> dict[str, Any]:
+    params = {"vtol": spec.vtol, "band": spec.bands[0] if len(spec.bands) == 1 else spec.bands,
+              "damping": spec.damps[0] if len(spec.damps) == 1 else spec.damps}
+    for key, val in (("max_impulses", spec.n_max), ("sample_period", spec.ts), ("max_duration", spec.dmax)):
+        if val is not None:
+            params[key] = val
+    return params
 
 
 def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: Any = (0.9, 1.1),
@@ -341,104 +522,20 @@ def shortest_shaper(modes: Mode | Sequence[Mode], *, vtol: float = 0.05, band: A
     >>> S.optimality.lower_bound <= S.duration
     True
     """
-    ms = _as_modes(modes)
-    if len(ms) > _MAX_MODES:
-        raise ValueError(f"modes must be at most {_MAX_MODES} modes (each adds a band to every LP), got {len(ms)}: "
-                         "design for the modes that matter, or in groups")
-    tol = v.real_in_range(vtol, "vtol", 1e-6, 1.0, hi_open=True, hint=" (below 1e-6 the constraints are rounding)")
-    bands = _per_mode(band, len(ms), "band", 0.0, 1000.0, None, lo_open=True)
-    damps = _per_mode(damping, len(ms), "damping", 0.0, 1.0, [(m.zeta, m.zeta) for m in ms], hi_open=True)
-    n_max = None if max_impulses is None else v.integer_in_range(max_impulses, "max_impulses", 2, 1000)
-    ts = None if sample_period is None else v.positive(v.finite_real(sample_period, "sample_period"), "sample_period")
-    dmax = None if max_duration is None else v.positive(v.finite_real(max_duration, "max_duration"), "max_duration")
-    v.instance_of(certify, bool, "certify", "True or False")
-    v.instance_of(name, str, "name", "a string")
-
-    scale = max(m.omega * b[1] for m, b in zip(ms, bands))
-    prob = _Problem(ms, bands, damps, tol, scale, time.perf_counter() + _BUDGET)
-    h = 2 * math.pi / _GRID_PER_PERIOD
-    k_cap = _MAX_GRID if dmax is None else max(2, min(_MAX_GRID, int(math.floor(dmax * scale / h))))
-    u_cap = (dmax * scale) if dmax is not None else k_cap * h
-    K, A_grid, _, s_cap, k_done = _lp_shortest(prob, k_cap)
-    notes = []
-    if K is None:  # no positive shaper within the cap: the least-vibration grid shaper there
-        u, A = _clusters(np.arange(k_done + 1) * h, A_grid)
-        ok = False
-        if prob.late():
-            notes.append(f"the duration search stopped at the time budget ({_BUDGET:g} s) at {k_done * h / scale:.6g} s "
-                         f"(least polygon vibration there {s_cap:.4g} > vtol {tol:g})")
-        elif k_done >= k_cap:
-            notes.append(f"no positive shaper of duration <= {u_cap / scale:.6g} s keeps V <= {tol:g} on the "
-                         f"bands (least polygon vibration there {s_cap:.4g})")
-        else:
-            notes.append(f"the search stopped at duration {k_done * h / scale:.6g} s (least polygon vibration "
-                         f"there {s_cap:.4g} > vtol {tol:g}): a longer LP would exceed {_MAX_LP:g} entries; "
-                         "narrow the bands or raise vtol")
-        if n_max is not None and u.size > n_max:
-            u, A = _merge_to(u, A, n_max)
+    spec = _shortest_spec(modes, vtol, band, damping, max_impulses, sample_period, max_duration, certify, name)
+    scale = max(m.omega * b[1] for m, b in zip(spec.modes, spec.bands))
+    prob = _Problem(spec.modes, spec.bands, spec.damps, spec.vtol, scale, time.perf_counter() + _BUDGET)
+    lim = _search_limits(spec, scale)
+    K, A_grid, _, s_cap, k_done = _lp_shortest(prob, lim.k_cap)
+    notes: list[str] = []
+    if K is None:
+        u, A, ok = _least_vibration(prob, spec, lim, A_grid, s_cap, k_done, notes)
     else:
-        u, A, ok = _exchange(prob, *_clusters(np.arange(K + 1) * h, A_grid))
-        for u0, A0 in _closed_form_starts(prob):  # a closed form meeting the bands bounds the duration
-            if not ok or u0[-1] < u[-1] * (1 - 1e-9):
-                u1, A1, _ = _exchange(prob, u0, A0) if not prob.late() else (u0, A0, True)  # the start meets
-                if not ok or u1[-1] < u[-1]:                                                 # the bands
-                    u, A, ok = u1, A1, True
-        for _ in range(2):  # re-polish from the result while it is not a KKT point (SLSQP can stall near
-            if not ok or prob.late() or _kkt(prob, u, A, _peaks(prob, u, A, tol * 0.5)) <= 1e-5:  # degenerate
-                break
-            u1, A1, ok1 = _exchange(prob, u, A)
-            if not (ok1 and u1[-1] < u[-1] * (1 - 1e-12)):
-                break
-            u, A = u1, A1
-        if not ok:
-            notes.append("the polish did not reach a shaper meeting the bands on the dense grid")
-        if n_max is not None and u.size > n_max:
-            search_cap = min(u_cap, 4.0 * u[-1])  # fewer impulses: searched up to 4x the unlimited optimum
-            u, A, ok = _limited(prob, u, A, n_max, K * h * 0.9, search_cap)
-            if not ok:
-                notes.append(f"the search found no shaper of {n_max} impulses keeping V <= {tol:g} on the bands "
-                             f"within {search_cap / scale:.6g} s (4x the unlimited optimum; a local search, not a "
-                             "proof); this is the least-vibration shaper found")
-    if ok and ts is not None and ts * scale > u_cap:
-        ok = False
-        notes.append(f"sample_period={ts:g} s is longer than the longest shaper searched ({u_cap / scale:.6g} s)")
-    elif ok and ts is not None and ts * scale < TIME_RESOLUTION * u[-1]:
-        notes.append(f"sample_period={ts:g} s is below the time resolution ({TIME_RESOLUTION:g} x duration): "
-                     "the times are left as designed")
-    elif ok and ts is not None:
-        u, A, ok = _on_grid(prob, u, A, ts * scale, u_cap)
-        if not ok:
-            notes.append(f"no shaper on the {ts:g} s sample grid within the limits keeps V <= {tol:g}; "
-                         "this is the least-vibration one found")
-        elif n_max is not None and u.size > n_max:  # pragma: no cover - rounding never adds impulses
-            ok = False
-    if ok and dmax is not None and u[-1] > u_cap * (1 + 1e-9):
-        ok = False
-        notes.append(f"the shortest shaper lasts {u[-1] / scale:.6g} s, more than max_duration={dmax:g} s")
-    if prob.late():
-        notes.append(f"the searches stopped at the time budget ({_BUDGET:g} s) with the best shaper found")
-    pk = _peaks(prob, u, A, tol * 0.5)
-    worst = max(p[3] for p in pk)
-    feasible = ok and worst <= tol * (1 + 1e-6)
-    kkt = _kkt(prob, u, A, pk) if feasible and ts is None else None
-    kkt = kkt if kkt is not None and math.isfinite(kkt) else None
-    lb = _lower_bound(prob, int(math.floor(u[-1] / h))) / scale if certify and feasible else 0.0
-    status = "infeasible" if not feasible else ("optimal" if kkt is not None and kkt <= 1e-5 else "feasible")
-    if feasible and status == "feasible" and ts is None:
-        notes.append(f"the solver stopped at a feasible point whose KKT residual {kkt:.2g} is above 1e-5")
-    active = tuple(ActiveConstraint(p[0], p[1], p[2], p[3]) for p in pk if p[3] >= tol * (1 - 1e-5))
-    times = u / scale
-    if times.size >= 2:  # a mode too fast for seconds as the time unit: refused as design() refuses it
-        check_resolution(float(times[-1]), float(times[-1]),
-                         f"an optimal shaper for omega up to {scale:g} rad/s")
-    opt = Optimality(feasible, status, tol, worst, float(times[-1]), min(lb, float(times[-1])), int(times.size),
-                     active, kkt, " ".join(notes))
-    params = {"vtol": tol, "band": bands[0] if len(bands) == 1 else bands,
-              "damping": damps[0] if len(damps) == 1 else damps}
-    for key, val in (("max_impulses", n_max), ("sample_period", ts), ("max_duration", dmax)):
-        if val is not None:
-            params[key] = val
-    return OptimalShaper(times, A, name=name, modes=ms, params=params, optimality=opt)
+        u, A, ok = _shortest_found(prob, spec, lim, K, A_grid, notes)
+    u, A, ok = _on_sample_grid(prob, spec, lim.u_cap, u, A, ok, notes)
+    ok = _within_duration(prob, spec, lim.u_cap, u, ok, notes)
+    opt = _optimality(prob, spec, lim.h, u, A, ok, certify, notes)
+    return OptimalShaper(u / scale, A, name=name, modes=spec.modes, params=_shortest_params(spec), optimality=opt)
 
 
 def si_shaper(mode: Mode | Sequence[Mode], vtol: float = 0.05, band: Any = (0.9, 1.1), damping: Any = None,
