@@ -33,6 +33,9 @@ Tuning (:mod:`posicast.tune`)
     ``tune_pd``, ``tune_pi``, ``tune_pid``, ``TuningResult``, ``Region``, ``Constraint``.
 Identification and printer calibration (:mod:`posicast.identification`)
     ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
+Sweeps (:mod:`posicast.sweeps`, loaded on first use; Dask, Zarr)
+    ``sweep``: a function over a grid or seeded draws, on local processes or a Dask cluster,
+    persisted as results arrive and resumable.
 Case studies
     :mod:`posicast.cases` (the seeds' plants, each with its source).
 
@@ -64,6 +67,10 @@ __version__ = "0.1.0"
 
 
 def __getattr__(name: str) -> object:
+    if name == "sweep":  # issue #19: posicast.sweeps on first use (the lead's lazy table replaces this at merge)
+        from .sweeps import sweep
+
+        return sweep
     if name == "demo":
         raise AttributeError("posicast.demo moved to posicast_reports.demo (run: python -m posicast_reports.demo); "
                              "issue #14: reports are a separate package of the repository")
@@ -87,6 +94,8 @@ __all__ = [
     "tune_pd", "tune_pi", "tune_pid", "TuningResult", "Region", "Constraint",
     # identification and calibration
     "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
+    # sweeps
+    "sweep",
     # case studies
     "cases",
 ]
