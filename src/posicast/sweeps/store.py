@@ -166,7 +166,10 @@ def open_store(store: Any, space: Space, function: str, batch_size: int, overwri
                         "shape": list(space.shape), "seed": space.seed, "values": {}})
     params = group.require_group("parameters")
     for name, ax in zip(space.names, space.axes):
-        params.create_array(name, data=ax)
+        if ax.dtype.kind == "U":  # variable-length strings (zarr's fixed-width ones have no v3 specification)
+            params.create_array(name, shape=ax.shape, dtype=str, fill_value="")[:] = ax
+        else:
+            params.create_array(name, data=ax)
     n, chunk = space.n_points, (int(batch_size),)
     group.create_array("status", shape=(n,), chunks=chunk, dtype="int8", fill_value=0)
     group.create_array("error", shape=(n,), chunks=chunk, dtype=str, fill_value="")
