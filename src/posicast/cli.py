@@ -1,4 +1,6 @@
-"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``.
+"""Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``identify``, ``calibrate``, ``tune``, ``sweep``.
+
+``posicast sweep ...`` (issue #19) is defined in :mod:`posicast.sweeps.command`.
 
 ``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
 (one line on stderr, no configuration printed).  Every error (bad argument,
@@ -51,6 +53,7 @@ from .modes import Mode
 from .shapers.base import Shaper
 from .shapers import registry  # registry.design at call time: the suite patches it to test status 70
 from .spectra.rootfinder import RootFindingError
+from .sweeps.command import add_sweep_parser, run_sweep
 from .tune import TuningResult, tune_pd, tune_pi
 from .tune.constraints import sensitivity_constraint
 from .tune.family import pd_family
@@ -170,6 +173,7 @@ def _build_parser() -> _Parser:
     t.add_argument("--json", action="store_true", help="machine-readable output")
     t.add_argument("--plot", help="write the region in the gain plane (png, pdf, svg)")
     t.add_argument("--nyquist", help="write the Nyquist plot with the Ms circle")
+    add_sweep_parser(sub)
     return parser
 
 
@@ -475,6 +479,8 @@ def _run(argv: Sequence[str] | None) -> int:
         return _identify_cmd(args)
     if args.command == "tune":
         return _tune_cmd(args)
+    if args.command == "sweep":
+        return run_sweep(args, lambda fig, out: _save_atomic(fig, out, "--plot"))
     if args.command == "kinds":
         for name, spec in registry.KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import os
+import tempfile
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
@@ -170,15 +171,22 @@ class SweepResult:
         return out
 
     def to_csv(self, path: str | os.PathLike[str]) -> None:
-        """Write :meth:`table` as CSV (a header row, one row per point; floats with ``repr`` precision)."""
+        """Write :meth:`table` as CSV at exactly ``path``, atomically (a temporary file renamed): a header
+        row, one row per point, floats with ``repr`` precision."""
         cols = self.table()
-        names = list(cols)
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(names)
-            for row in zip(*(cols[nm] for nm in names)):
-                w.writerow([repr(float(x)) if isinstance(x, np.floating) else
-                            str(x) if not isinstance(x, np.bool_) else str(bool(x)) for x in row])
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(os.fspath(path))}.", suffix=".part",
+                                   dir=os.path.dirname(os.path.abspath(path)))
+        try:
+            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
+                w = csv.writer(fh)
+                w.writerow(list(cols))
+                for row in zip(*cols.values()):
+                    w.writerow([repr(float(x)) if isinstance(x, np.floating) else
+                                str(bool(x)) if isinstance(x, np.bool_) else str(x) for x in row])
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
 
     def summary(self) -> str:
         """One paragraph: points, statuses, values, the first failures and the cost."""
