@@ -62,6 +62,9 @@ class Store:
         self.path = path
         self.batch_size = int(group.attrs["batch_size"])
         self.kinds: dict[str, str] = dict(group.attrs.get("values", {}))
+        # array handles opened once (each lookup in the group reads metadata again)
+        self.arrays = {name: group[name] for name in ("status", "error", "seconds")}
+        self.values = {name: group["values"][name] for name in self.kinds} if self.kinds else {}
 
     # ------------------------------------------------------------------ batches
     @property
@@ -73,7 +76,7 @@ class Store:
 
     def pending(self) -> list[int]:
         """The batches with at least one missing point (all of a batch is recomputed: it is one chunk)."""
-        status = self.group["status"][:]
+        status = self.arrays["status"][:]
         n = self.n_batches
         padded = np.zeros(n * self.batch_size, dtype=np.int8)
         padded[: status.size] = status
@@ -99,33 +102,33 @@ class Store:
                 self.kinds.setdefault(name, kind)
                 columns.setdefault(name, [_KINDS[kind][1]] * (stop - start))[j] = x
         for name, col in columns.items():
-            if name not in self.group.get("values", {}):
+            if name not in self.values:
                 self._create_value(name)
-            dtype = self.group["values"][name].dtype
-            self.group["values"][name][start:stop] = np.array(
-                [np.nan if x is None else x for x in col], dtype=dtype if self.kinds[name] != "str" else str)
-        self.group["error"][start:stop] = np.array(errors, dtype=str)
-        self.group["seconds"][start:stop] = seconds
-        self.group["status"][start:stop] = status
+            arr = self.values[name]
+            arr[start:stop] = np.array([np.nan if x is None else x for x in col],
+                                       dtype=arr.dtype if self.kinds[name] != "str" else str)
+        if any(errors):  # the fill value is ''
+            self.arrays["error"][start:stop] = np.array(errors, dtype=str)
+        self.arrays["seconds"][start:stop] = seconds
+        self.arrays["status"][start:stop] = status
 
     def _create_value(self, name: str) -> None:
         dtype, fill = _KINDS[self.kinds[name]]
-        self.group.require_group("values").create_array(name, shape=(self.space.n_points,),
-                                                        chunks=(self.batch_size,), dtype=dtype, fill_value=fill)
+        self.values[name] = self.group.require_group("values").create_array(
+            name, shape=(self.space.n_points,), chunks=(self.batch_size,), dtype=dtype, fill_value=fill)
         self.group.attrs["values"] = dict(self.kinds)
 
     # ------------------------------------------------------------------ reading
     def result(self, computed: int = 0, timing: Any = None) -> SweepResult:
         shape = self.space.shape
-        codes = self.group["status"][:]
+        codes = self.arrays["status"][:]
         vals = {}
-        if "values" in self.group:
-            for name in self.kinds:
-                arr = self.group["values"][name][:]
-                vals[name] = (_strings(arr) if self.kinds[name] == "str" else arr).reshape(shape)
+        for name, handle in self.values.items():
+            arr = handle[:]
+            vals[name] = (_strings(arr) if self.kinds[name] == "str" else arr).reshape(shape)
         return SweepResult(self.space, str(self.group.attrs["function"]), vals,
-                           np.array(STATUS)[codes].reshape(shape), _strings(self.group["error"][:]).reshape(shape),
-                           self.group["seconds"][:].reshape(shape), self.path, computed, timing)
+                           np.array(STATUS)[codes].reshape(shape), _strings(self.arrays["error"][:]).reshape(shape),
+                           self.arrays["seconds"][:].reshape(shape), self.path, computed, timing)
 
 
 def _check_path(store: Any) -> str:
