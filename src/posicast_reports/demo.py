@@ -26,6 +26,7 @@ from posicast.spectra import roots
 from .html import Report
 from .identification_report import identification_section
 from .seed001_report import seed001_section
+from .sweep_report import sweep_section
 
 CRANE = ("seed 001 gantry crane sway mode", Mode(5.49, 0.008))
 LINK = ("seed 000 Quanser flexible-link mode", Mode(8.98, 0.14))
@@ -321,6 +322,7 @@ def build_report(out: str | Path) -> Path:
     _simulation_section(report)
     seed001_section(report)
     identification_section(report)
+    sweep_section(report)
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
     return report.write()
 

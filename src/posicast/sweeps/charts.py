@@ -141,6 +141,23 @@ class StabilityChart:
     result: SweepResult
     gain: str
     breaks: tuple[GainBreaks, ...]
+    loop: Callable[..., Loop] | None = None
+
+    def curves(self, rows: Sequence[float] | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """D-decomposition points ``(gains, row values)`` on the chart's rows, or on ``rows`` (finer rows
+        draw the curves between the chart's; each row costs one frequency-grid computation)."""
+        names = self.result.space.names
+        gains, other = self.result.space.axes
+        if rows is None:
+            return [(br.gain, np.full(br.gain.size, y)) for br, y in zip(self.breaks, other)]
+        if self.loop is None:
+            raise ValueError("this chart has no loop to compute more rows from")
+        window = (float(gains.min()), float(gains.max()))
+        out = []
+        for y in v.strict_real_array(rows, "rows"):
+            br = gain_breaks(self.loop(**{names[0]: 1.0, names[1]: float(y)}), window)
+            out.append((br.gain, np.full(br.gain.size, y)))
+        return out
 
     def stability_edges(self, row_value: float) -> list[float]:
         """The D-decomposition gains of one row where the chart's verdict changes (the stability boundary)."""
@@ -171,10 +188,11 @@ class StabilityChart:
                     bad.append((float(other[i]), float(gains[j]), float(gains[j + 1])))
         return bad
 
-    def plot(self, ax: Axes | None = None, **kwargs: Any) -> tuple[Figure, Axes]:
-        """The verdict (green stable, red unstable) with the D-decomposition crossings as black dots."""
-        other = self.result.space.axes[1]
-        curves = [(br.gain, np.full(br.gain.size, y)) for br, y in zip(self.breaks, other)]
+    def plot(self, ax: Axes | None = None, rows: Sequence[float] | None = None,
+             **kwargs: Any) -> tuple[Figure, Axes]:
+        """The verdict (green stable, red unstable) with the D-decomposition crossings as black dots
+        (on the chart's rows and on ``rows``, see :meth:`curves`)."""
+        curves = self.curves() + (self.curves(rows) if rows is not None else [])
         fig, ax = value_map(self.result, "stable", ax, curves=curves, curve_label="D-decomposition", **kwargs)
         ax.set_title("certified stability; D-decomposition along the gain")
         return fig, ax
@@ -207,7 +225,7 @@ def stability_chart(loop: Callable[..., Loop], parameters: dict[str, Sequence[fl
     gains, other = result.space.axes
     window = (float(gains.min()), float(gains.max()))
     breaks = tuple(gain_breaks(loop(**{gain: 1.0, names[1]: float(y)}), window) for y in other)
-    return StabilityChart(result, gain, breaks)
+    return StabilityChart(result, gain, breaks, loop)
 
 
 # ---------------------------------------------------------------------- seed 000
