@@ -117,3 +117,20 @@ def test_folder_of_calibration_logs_to_one_table(tmp_path: Path) -> None:
     assert (tmp_path / "farm.csv").read_text().count("\n") == 3
     with pytest.raises(ValueError, match="no file matching"):
         calibration_table(tmp_path, "*.log", client="serial")
+
+
+def test_readme_sweep_example_runs() -> None:
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    start = text.index("from posicast.sweeps.charts import seed000_chart")
+    block = text[text.rindex("```python", 0, start) + len("```python"): text.index("```", start)]
+    exec(compile("\n".join(line[2:] for line in block.splitlines()), "README.md", "exec"), {})
+
+
+def test_report_section_rows_agree(tmp_path: Path) -> None:
+    from posicast_reports.html import Report
+    from posicast_reports.sweep_report import sweep_section
+
+    report = Report("t", tmp_path)
+    sweep_section(report)
+    page = report.write().read_text(encoding="utf-8")
+    assert "0 disagreements" in page and page.count(">yes<") == 5 and ">NO<" not in page
