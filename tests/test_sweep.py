@@ -24,6 +24,7 @@ from scipy import stats
 import posicast
 from posicast.sweeps import SchedulerUnreachable, StoreMismatch, load, make_space, sweep
 from posicast.sweeps.charts import seed000_loop, stability_point
+from posicast.sweeps.engine import _DaskRunner
 
 GAINS = [0.3, 0.7, 0.9, 1.2]
 ERRORS = [-0.5, 0.0, 0.5]
@@ -33,14 +34,27 @@ def chart_point(gain: float, delay_error: float) -> dict:
     return stability_point(seed000_loop, gain=gain, delay_error=delay_error)
 
 
+@pytest.fixture(scope="module")
+def local_cluster():
+    """One LocalCluster of 2 worker processes for this module, started exactly as ``sweep(workers=2)``
+    starts its own (the default when no client is given); the tests reach it through a Client and
+    through its scheduler address."""
+    runner = _DaskRunner(workers=2)
+    runner.start()
+    yield runner
+    runner.close()
+
+
 # ---------------------------------------------------------------------- acceptance 1: cluster == serial
-def test_local_cluster_of_two_processes_gives_the_serial_result(tmp_path: Path) -> None:
+def test_local_cluster_of_two_processes_gives_the_serial_result(tmp_path: Path, local_cluster) -> None:
     import functools
 
     f = functools.partial(stability_point, seed000_loop)  # importable on the workers
     params = {"gain": GAINS, "delay_error": ERRORS}
     serial = sweep(f, params, client="serial")
-    parallel = sweep(f, params, workers=2, batch_size=2, store=tmp_path / "chart.zarr")
+    assert len(local_cluster.client.scheduler_info()["workers"]) == 2
+    assert local_cluster.own_cluster.processes
+    parallel = sweep(f, params, client=local_cluster.client, batch_size=2, store=tmp_path / "chart.zarr")
     assert parallel.timing.workers == 2 and parallel.timing.tasks == 6
     assert serial.complete and parallel.complete
     assert parallel.same_as(serial)
@@ -78,7 +92,7 @@ def _log_points(path: Path) -> list[tuple[float, float]]:
     return [tuple(float(x) for x in line.split()) for line in path.read_text().splitlines() if line.strip()]
 
 
-def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Path) -> None:
+def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Path, local_cluster) -> None:
     script = tmp_path / "run_sweep.py"
     script.write_text(textwrap.dedent(_SCRIPT))
     store, log1, log2 = tmp_path / "vib.zarr", tmp_path / "log1", tmp_path / "log2"
@@ -96,11 +110,15 @@ def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Pa
     assert 0 < stored.sum() < stored.size, "the kill must land half-way"
     assert np.all(before.status.ravel()[stored] == "ok")
 
-    # resume in this process with the same function (same name), counting the evaluations in log2
-    ns: dict = {}
+    # resume with the same function (same name) on a 2-process LocalCluster reached by its scheduler address,
+    # the workers counting their evaluations in log2 (the function is pickled by value: its module is not
+    # importable there)
+    ns: dict = {"__name__": "resume_script"}
     exec(compile(textwrap.dedent(_SCRIPT).replace("LOG = sys.argv[2]", f"LOG = {str(log2)!r}"), "resume", "exec"), ns)
     grid = {"ratio": list(np.linspace(0.5, 1.5, 12)), "zeta": [0.0, 0.05, 0.1, 0.2, 0.3]}
-    resumed = sweep(ns["vibration"], grid, client="serial", batch_size=4, store=store)
+    address = local_cluster.own_cluster.scheduler_address
+    resumed = sweep(ns["vibration"], grid, client=address, batch_size=4, store=store)
+    assert resumed.timing.workers == 2
     points = [tuple(p) for p in zip(before["ratio"].ravel(), before["zeta"].ravel())]
     stored_points = {p for p, s in zip(points, stored) if s}
     second = _log_points(log2)

@@ -36,6 +36,8 @@ __all__ = ["sweep", "run_batch", "BatchOutput", "SchedulerUnreachable", "WorkerF
 #: Batches aim at this many per worker (load balance) and hold at most MAX_BATCH points.
 BATCHES_PER_WORKER = 8
 MAX_BATCH = 64
+#: Tasks in flight per worker (the rest are submitted as these finish).
+IN_FLIGHT_PER_WORKER = 4
 
 
 class SchedulerUnreachable(ConnectionError):
@@ -127,10 +129,10 @@ class _Runner:
     def start(self) -> None:
         pass
 
-    def run(self, function: Callable[..., Any], jobs: list[tuple[int, dict[str, np.ndarray]]]
+    def run(self, function: Callable[..., Any], batches: list[int], columns: Callable[[int], dict[str, np.ndarray]]
             ) -> Iterator[tuple[int, BatchOutput]]:
-        for b, cols in jobs:
-            yield b, run_batch(function, cols)
+        for b in batches:
+            yield b, run_batch(function, columns(b))
 
     def close(self) -> None:
         pass
@@ -153,6 +155,12 @@ class _DaskRunner(_Runner):
                                            "`dask scheduler` and `dask worker ADDRESS`, or omit --scheduler "
                                            "to run on local processes") from None
             self.own_client = True
+            try:
+                self.client.wait_for_workers(1, timeout=connect_timeout)
+            except Exception:  # TimeoutError: a scheduler without workers would hold the tasks forever
+                self.client.close()
+                raise SchedulerUnreachable(f"the Dask scheduler at {address!r} has no worker (waited "
+                                           f"{connect_timeout:g} s); start one with `dask worker {address}`") from None
 
     @property
     def workers(self) -> int:  # type: ignore[override]
@@ -170,26 +178,43 @@ class _DaskRunner(_Runner):
         self.client = Client(self.own_cluster, set_as_default=False)
         self.own_client = True
 
-    def run(self, function: Callable[..., Any], jobs: list[tuple[int, dict[str, np.ndarray]]]
+    def run(self, function: Callable[..., Any], batches: list[int], columns: Callable[[int], dict[str, np.ndarray]]
             ) -> Iterator[tuple[int, BatchOutput]]:
+        """Submit the batches in a bounded window (a few per worker in flight: memory and the scheduler's
+        queue stay small for a million-point sweep, and an interrupt cancels little), yield as they finish."""
         from distributed import as_completed
 
         client = self.client
         fn = client.scatter(function, broadcast=True, hash=False)
         token = uuid.uuid4().hex[:8]
-        futures = {client.submit(run_batch, fn, cols, key=f"posicast-sweep-{token}-{b}", pure=False): b
-                   for b, cols in jobs}
+        window = max(8, IN_FLIGHT_PER_WORKER * self.workers)
+        todo = iter(batches)
+        live: dict[Any, int] = {}
+
+        def submit() -> Any:
+            b = next(todo, None)
+            if b is None:
+                return None
+            fut = client.submit(run_batch, fn, columns(b), key=f"posicast-sweep-{token}-{b}", pure=False)
+            live[fut] = b
+            return fut
+
+        first = [f for f in (submit() for _ in range(window)) if f is not None]
+        queue = as_completed(first, loop=client.loop)
         try:
-            for fut in as_completed(futures, loop=client.loop):
+            for fut in queue:
+                b = live.pop(fut)
                 try:
                     out = fut.result()
                 except Exception as exc:
-                    raise WorkerFailure(f"batch {futures[fut]} failed on the cluster: {_message(exc)} "
-                                        "(the batches stored so far are kept: run the same sweep again to "
-                                        "resume)") from None
-                yield futures[fut], out
+                    raise WorkerFailure(f"batch {b} failed on the cluster: {_message(exc)} (the batches stored "
+                                        "so far are kept: run the same sweep again to resume)") from None
+                nxt = submit()
+                if nxt is not None:
+                    queue.add(nxt)
+                yield b, out
         finally:
-            client.cancel(list(futures))
+            client.cancel(list(live))
 
     def close(self) -> None:
         if self.own_client and self.client is not None:
@@ -310,20 +335,19 @@ def sweep(function: Callable[..., Any], parameters: Mapping[str, Any], *, n: int
 
 def _execute(function: Callable[..., Any], st: Store, runner: _Runner, progress: Any, fname: str) -> SweepResult:
     pending = st.pending()
-    jobs = [(b, st.space.columns(*st.bounds(b))) for b in pending]
     todo = sum(st.bounds(b)[1] - st.bounds(b)[0] for b in pending)
-    if not jobs:
+    if not pending:
         return st.result(0, Timing(0.0, 0.0, 0, runner.workers))
     runner.start()
     t0, compute, done = time.perf_counter(), 0.0, 0
     bar = _progress_bar(progress, st.space.n_points, st.space.n_points - todo, fname)
     try:
-        for b, out in runner.run(function, jobs):
+        for b, out in runner.run(function, pending, lambda b: st.space.columns(*st.bounds(b))):
             st.write(b, out.status, out.errors, out.values, out.seconds)
             compute += float(np.sum(out.seconds))
             done += out.status.size
             bar.update(out.status.size)
     finally:
         bar.close()
-    timing = Timing(time.perf_counter() - t0, compute, len(jobs), runner.workers)
+    timing = Timing(time.perf_counter() - t0, compute, len(pending), runner.workers)
     return st.result(done, timing)
