@@ -117,6 +117,7 @@ def default_batch_size(n_points: int, workers: int) -> int:
     >>> default_batch_size(400, 2)
     25
     """
+    n_points, workers = v.integer(n_points, "n_points", 1), v.integer(workers, "workers", 1)
     return int(max(1, min(MAX_BATCH, math.ceil(n_points / (BATCHES_PER_WORKER * max(1, workers))))))
 
 
@@ -224,7 +225,9 @@ class _DaskRunner(_Runner):
 
 
 def _runner(client: Any, workers: int | None, connect_timeout: float) -> _Runner:
-    if client == "serial":
+    if workers is not None:
+        workers = v.integer_in_range(workers, "workers", 1, 4096)
+    if isinstance(client, str) and client == "serial":
         if workers not in (None, 1):
             raise ValueError(f"workers must be None or 1 with client='serial', got {workers!r}")
         return _Runner()
@@ -236,8 +239,7 @@ def _runner(client: Any, workers: int | None, connect_timeout: float) -> _Runner
                              f"distributed.Client, got {client!r}")
         return _DaskRunner(address=client, connect_timeout=connect_timeout)
     if client is None:
-        n = (os.cpu_count() or 1) if workers is None else v.integer_in_range(workers, "workers", 1, 4096)
-        return _DaskRunner(workers=n)
+        return _DaskRunner(workers=(os.cpu_count() or 1) if workers is None else workers)
     if callable(getattr(client, "submit", None)) and callable(getattr(client, "scheduler_info", None)):
         if workers is not None:
             raise ValueError("workers applies to the local cluster only; a client's cluster has its own workers")
@@ -321,6 +323,8 @@ def sweep(function: Callable[..., Any], parameters: Mapping[str, Any], *, n: int
     connect_timeout = v.positive(connect_timeout, "connect_timeout")
     if not isinstance(overwrite, bool):
         raise TypeError(f"overwrite must be a bool, got {type(overwrite).__name__}")
+    if progress is not None and not isinstance(progress, bool):
+        raise TypeError(f"progress must be None or a bool, got {type(progress).__name__}")
     runner = _runner(client, workers, connect_timeout)
     try:
         if batch_size is None:

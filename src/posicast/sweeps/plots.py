@@ -9,6 +9,8 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
+from .. import _validate as v
+
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
@@ -21,7 +23,7 @@ __all__ = ["value_map", "histogram"]
 def _axes(ax: Axes | None) -> tuple[Figure, Axes]:
     import matplotlib.pyplot as plt
 
-    if ax is None:
+    if v.axes(ax) is None:
         fig, ax = plt.subplots(figsize=(6.0, 4.2))
         return fig, ax
     return ax.figure, ax
@@ -45,8 +47,7 @@ def value_map(result: SweepResult, value: str, ax: Axes | None = None,
     """
     if result.space.kind != "grid" or len(result.shape) != 2:
         raise ValueError(f"value_map needs a 2-D grid sweep, got {result.space.kind} of shape {result.shape}")
-    if value not in result.values:
-        raise ValueError(f"value must be one of {tuple(result.values)}, got {value!r}")
+    v.choice(value, "value", tuple(result.values))
     x, y = result.space.axes
     if x.dtype.kind == "U" or y.dtype.kind == "U":
         raise ValueError("value_map needs numeric grid axes")
@@ -76,8 +77,8 @@ def value_map(result: SweepResult, value: str, ax: Axes | None = None,
 def histogram(result: SweepResult, value: str, ax: Axes | None = None, bins: int = 30,
               **kwargs: Any) -> tuple[Figure, Axes]:
     """Histogram of a numeric value over the points that succeeded (Monte Carlo sweeps)."""
-    if value not in result.values:
-        raise ValueError(f"value must be one of {tuple(result.values)}, got {value!r}")
+    v.choice(value, "value", tuple(result.values))
+    bins = v.integer_in_range(bins, "bins", 1, 10**6)
     data = np.asarray(result.values[value], dtype=float)[result.ok]
     data = data[np.isfinite(data)]
     fig, ax = _axes(ax)
