@@ -231,6 +231,9 @@ def test_store_of_another_sweep_is_refused(tmp_path: Path) -> None:
 def test_unstorable_value_fails_that_point() -> None:
     r = sweep(lambda x: np.ones(2) * x, {"x": [1.0]}, client="serial")
     assert r.status[0] == "error" and "a sweep stores numbers, bools and strings" in r.errors[0]
+    r = sweep(lambda x: "big" if x > 1 else x, {"x": [1.0, 2.0]}, client="serial")
+    assert r.status.tolist() == ["ok", "error"]
+    assert r.errors[1] == "TypeError: value 'value' is str here, float at other points"
 
 
 def test_space_points_follow_numpy_order() -> None:

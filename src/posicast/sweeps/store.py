@@ -114,8 +114,11 @@ class Store:
 
     def _create_value(self, name: str) -> None:
         dtype, fill = _KINDS[self.kinds[name]]
+        # overwrite: an array left by a kill between its creation and the attrs' update holds no data yet
+        # (a batch's values are written after both)
         self.values[name] = self.group.require_group("values").create_array(
-            name, shape=(self.space.n_points,), chunks=(self.batch_size,), dtype=dtype, fill_value=fill)
+            name, shape=(self.space.n_points,), chunks=(self.batch_size,), dtype=dtype, fill_value=fill,
+            overwrite=True)
         self.group.attrs["values"] = dict(self.kinds)
 
     # ------------------------------------------------------------------ reading
