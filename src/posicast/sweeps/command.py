@@ -74,6 +74,8 @@ def add_sweep_parser(sub: Any) -> None:
     m.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
     m.add_argument("--grid27", action="store_true", help="the seed's 27 plants instead of draws")
     m.add_argument("--shaper", default="zvdk", help="shaper kind for the nominal mode (default zvdk: ZVD^2)")
+    m.add_argument("--architecture", default="control_action", choices=("control_action", "feedforward"),
+                   help="the shaper inside the loop (seed 003, default) or in front of it")
     m.add_argument("--no-simulate", action="store_true", help="skip the step response (overshoot, settling)")
     m.add_argument("--value", default="ms", help="value to histogram with --plot (default ms)")
     k = kinds.add_parser("calibrate", help="a folder of resonance-test logs to one table")
@@ -137,9 +139,10 @@ def run_sweep(args: argparse.Namespace, save_figure: Callable[[Any, str], None])
         result = chart.result
     elif args.sweep == "montecarlo":
         if args.grid27:
-            result = two_mass_grid(shaper=args.shaper, simulate_step=not args.no_simulate, **opts)
+            result = two_mass_grid(shaper=args.shaper, architecture=args.architecture,
+                                   simulate_step=not args.no_simulate, **opts)
         else:
-            result = two_mass_monte_carlo(args.n, args.seed, shaper=args.shaper,
+            result = two_mass_monte_carlo(args.n, args.seed, shaper=args.shaper, architecture=args.architecture,
                                           simulate_step=not args.no_simulate, **opts)
     elif args.sweep == "calibrate":
         result = calibration_table(args.folder, args.pattern, firmware=args.firmware, **opts)
