@@ -215,7 +215,7 @@ class _DaskRunner(_Runner):
                     queue.add(nxt)
                 yield b, out
         finally:
-            client.cancel(list(live))
+            client.cancel(list(live) + [fn])  # a cluster that outlives the sweep keeps nothing of it
 
     def close(self) -> None:
         if self.own_client and self.client is not None:
