@@ -60,6 +60,16 @@ def test_d_decomposition_boundary_is_a_root_on_the_axis_and_the_bisected_verdict
     assert lo <= k <= hi
 
 
+def test_chart_refuses_a_loop_whose_controller_does_not_scale_with_the_gain() -> None:
+    from posicast.sweeps.charts import stability_chart
+
+    def offset(gain: float, delay_error: float) -> posicast.Loop:
+        return seed000_loop(1.0 + gain, delay_error)
+
+    with pytest.raises(ValueError, match="must be k times a fixed controller"):
+        stability_chart(offset, {"gain": [0.5], "delay_error": [0.0]}, client="serial")
+
+
 def test_gain_breaks_bad_window() -> None:
     with pytest.raises(ValueError, match="low < high"):
         gain_breaks(seed000_loop(), (1.0, 0.5))

@@ -221,11 +221,23 @@ def stability_chart(loop: Callable[..., Loop], parameters: dict[str, Sequence[fl
     if gain != names[0]:
         raise ValueError(f"gain must be the first parameter ({names[0]!r}), got {gain!r}")
     check_arguments(loop, tuple(names))
+    _check_gain_scales(loop, gain, names[1], parameters[names[1]])
     result = sweep(functools.partial(stability_point, loop), parameters, **sweep_kwargs)
     gains, other = result.space.axes
     window = (float(gains.min()), float(gains.max()))
     breaks = tuple(gain_breaks(loop(**{gain: 1.0, names[1]: float(y)}), window) for y in other)
     return StabilityChart(result, gain, breaks, loop)
+
+
+def _check_gain_scales(loop: Callable[..., Loop], gain: str, other: str, values: Any) -> None:
+    """``loop(gain=k).C`` must be ``k`` times ``loop(gain=1).C`` (the D-decomposition along the gain assumes it)."""
+    y = float(np.asarray(values, dtype=float).ravel()[0]) if np.size(values) else 0.0
+    c1, c2 = (loop(**{gain: k, other: y}).C for k in (1.0, 2.0))
+    s = 0.7j + 0.3  # a generic point (no pole or zero of a controller of the seeds there)
+    a, b = complex(c1(s)), complex(c2(s))
+    if not (np.isfinite(a) and abs(b - 2.0 * a) <= 1e-9 * max(abs(b), 1e-300)):
+        raise ValueError(f"loop({gain}=k, ...).C must be k times a fixed controller (C(s) at k = 2 is "
+                         f"{b:.6g}, twice k = 1 gives {2 * a:.6g}): the D-decomposition runs along the gain")
 
 
 # ---------------------------------------------------------------------- seed 000
