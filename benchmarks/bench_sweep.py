@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import logging
 import os
 import statistics
 import sys
@@ -33,12 +32,20 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import machine_info, md_table, print_machine_info  # noqa: E402
 
-from posicast.sweeps import sweep  # noqa: E402
+from posicast.sweeps import local_cluster, sweep  # noqa: E402
 from posicast.sweeps.charts import seed000_loop, stability_point  # noqa: E402
 
 
 def _noop(x: float) -> float:
     return x
+
+
+def _fixed_work(n: int = 40) -> float:
+    """``n`` chart points in a row, no Dask in between: the machine's own 2-process scaling (the ceiling)."""
+    t = time.perf_counter()
+    for g in np.linspace(0.05, 1.5, n):
+        stability_point(seed000_loop, gain=float(g), delay_error=0.1)
+    return time.perf_counter() - t
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,11 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  load avg : {' '.join(f'{x:.2f}' for x in os.getloadavg())} (before)")
     n = len(gains) * len(errors)
 
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    cluster = local_cluster(2)  # what sweep(workers=2) starts
     client = Client(cluster)
     client.run(lambda: __import__("posicast.sweeps.charts"))  # workers import posicast once, like any session
     startup = time.perf_counter() - t0
@@ -76,6 +82,14 @@ def main(argv: list[str] | None = None) -> int:
         client.submit(_noop, float(i), pure=False).result()
         rt.append(time.perf_counter() - t)
     roundtrip = statistics.median(rt)
+
+    # the machine's ceiling: the same fixed work on one worker alone, then on both at once
+    names = list(client.scheduler_info()["workers"])
+    client.submit(_fixed_work, 4, pure=False, workers=[names[0]]).result()
+    alone = statistics.median(client.submit(_fixed_work, pure=False, workers=[names[0]]).result() for _ in range(3))
+    both = statistics.median(max(f.result() for f in [client.submit(_fixed_work, pure=False, workers=[w])
+                                                      for w in names]) for _ in range(3))
+    ceiling = 2 * alone / both
 
     plain, serial, parallel, overhead_serial, overhead_par, batches = [], [], [], [], [], 0
     reference = None
@@ -109,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     stable = int(np.count_nonzero(reference["stable"])) if reference is not None else 0
     print(f"\nspeed-up, 2 workers vs the serial sweep: {ms / mpar:.2f}x; vs the plain loop: {mp / mpar:.2f}x "
           "(target >= 1.7)")
+    print(f"the machine's 2-process ceiling now: {ceiling:.2f}x (the same 40 points on one worker alone, "
+          f"{alone:.2f} s, and on both at once, {both:.2f} s each)")
     print(f"Dask round trip of an empty task: {roundtrip * 1e3:.2f} ms (median of 200); LocalCluster start-up "
           f"with the workers' imports: {startup:.2f} s (once per session)")
     print(f"chart: {stable} of {n} points certified stable; all three runs give the same verdicts")

@@ -891,6 +891,7 @@ NOT_CALLED = {
     "Dataset": "result of load_csv: Dataset.column driven",
     "DiscreteShaper": "result of discretize: __call__ and at_s driven",
     "SweepResult": "result of sweep: SweepResult.parameter and .plot driven",
+    "local_cluster": "starts worker processes (seconds): driven in tests/test_sweep.py, its workers checked there",
     "Space": "result of make_space",
     "Failure": "result: SweepResult.failures entries",
     "Timing": "result: SweepResult.timing",

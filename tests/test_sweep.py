@@ -35,10 +35,10 @@ def chart_point(gain: float, delay_error: float) -> dict:
 
 
 @pytest.fixture(scope="module")
-def local_cluster():
-    """One LocalCluster of 2 worker processes for this module, started exactly as ``sweep(workers=2)``
-    starts its own (the default when no client is given); the tests reach it through a Client and
-    through its scheduler address."""
+def cluster():
+    """One LocalCluster of 2 worker processes for this module, started as ``sweep(workers=2)`` starts its
+    own (posicast.sweeps.local_cluster); the tests reach it through a Client, its scheduler address and
+    the cluster object."""
     runner = _DaskRunner(workers=2)
     runner.start()
     yield runner
@@ -46,19 +46,21 @@ def local_cluster():
 
 
 # ---------------------------------------------------------------------- acceptance 1: cluster == serial
-def test_local_cluster_of_two_processes_gives_the_serial_result(tmp_path: Path, local_cluster) -> None:
+def test_local_cluster_of_two_processes_gives_the_serial_result(tmp_path: Path, cluster) -> None:
     import functools
 
     f = functools.partial(stability_point, seed000_loop)  # importable on the workers
     params = {"gain": GAINS, "delay_error": ERRORS}
     serial = sweep(f, params, client="serial")
-    assert len(local_cluster.client.scheduler_info()["workers"]) == 2
-    assert local_cluster.own_cluster.processes
-    parallel = sweep(f, params, client=local_cluster.client, batch_size=2, store=tmp_path / "chart.zarr")
+    info = cluster.client.scheduler_info()["workers"]
+    assert len(info) == 2 and all(w["nthreads"] == 1 for w in info.values()) and cluster.own_cluster.processes
+    parallel = sweep(f, params, client=cluster.client, batch_size=2, store=tmp_path / "chart.zarr")
     assert parallel.timing.workers == 2 and parallel.timing.tasks == 6
     assert serial.complete and parallel.complete
     assert parallel.same_as(serial)
     assert load(tmp_path / "chart.zarr").same_as(serial)
+    again = sweep(f, params, client=cluster.own_cluster, batch_size=3)  # the cluster object itself
+    assert again.same_as(serial) and again.timing.workers == 2
     # the verdicts themselves: stable below the D-decomposition edge (0.769 .. 0.795 here), unstable above
     assert serial["stable"].tolist() == [[True] * 3, [True] * 3, [False] * 3, [False] * 3]
     assert np.all(serial["unstable_roots"][2:] > 0)
@@ -92,7 +94,7 @@ def _log_points(path: Path) -> list[tuple[float, float]]:
     return [tuple(float(x) for x in line.split()) for line in path.read_text().splitlines() if line.strip()]
 
 
-def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Path, local_cluster) -> None:
+def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Path, cluster) -> None:
     script = tmp_path / "run_sweep.py"
     script.write_text(textwrap.dedent(_SCRIPT))
     store, log1, log2 = tmp_path / "vib.zarr", tmp_path / "log1", tmp_path / "log2"
@@ -116,7 +118,7 @@ def test_killed_sweep_resumes_without_recomputing_and_loses_nothing(tmp_path: Pa
     ns: dict = {"__name__": "resume_script"}
     exec(compile(textwrap.dedent(_SCRIPT).replace("LOG = sys.argv[2]", f"LOG = {str(log2)!r}"), "resume", "exec"), ns)
     grid = {"ratio": list(np.linspace(0.5, 1.5, 12)), "zeta": [0.0, 0.05, 0.1, 0.2, 0.3]}
-    address = local_cluster.own_cluster.scheduler_address
+    address = cluster.own_cluster.scheduler_address
     resumed = sweep(ns["vibration"], grid, client=address, batch_size=4, store=store)
     assert resumed.timing.workers == 2
     points = [tuple(p) for p in zip(before["ratio"].ravel(), before["zeta"].ravel())]

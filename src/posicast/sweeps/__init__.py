@@ -12,10 +12,10 @@ interrupted sweep resumes without recomputing.  The result is labelled
 ([np.str_('ok'), np.str_('ok'), np.str_('error')], 'ZeroDivisionError: float division by zero')
 """
 
-from .engine import SchedulerUnreachable, WorkerFailure, default_batch_size, sweep
+from .engine import SchedulerUnreachable, WorkerFailure, default_batch_size, local_cluster, sweep
 from .result import Failure, SweepResult, Timing
 from .space import Space, make_space
 from .store import StoreMismatch, load
 
-__all__ = ["sweep", "load", "SweepResult", "Failure", "Timing", "Space", "make_space", "default_batch_size",
+__all__ = ["sweep", "local_cluster", "load", "SweepResult", "Failure", "Timing", "Space", "make_space", "default_batch_size",
            "SchedulerUnreachable", "WorkerFailure", "StoreMismatch"]
