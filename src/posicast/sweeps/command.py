@@ -97,7 +97,7 @@ def add_sweep_parser(sub: Any) -> None:
         where.add_argument("--serial", action="store_true", help="in this process, without Dask")
         g.add_argument("--store", help="Zarr directory: results persist as they arrive; rerun to resume")
         g.add_argument("--overwrite", action="store_true", help="discard what --store holds")
-        g.add_argument("--batch-size", type=int, help="points per task (default: about 8 tasks per worker)")
+        g.add_argument("--batch-size", type=int, help="points per task (default: about 16 tasks per worker)")
         g.add_argument("--timeout", type=float, default=10.0, help="seconds to reach --scheduler (default 10)")
         g.add_argument("--csv", help="write the table (one row per point) to this .csv file")
         g.add_argument("--plot", help="write a figure (png, pdf, svg)")

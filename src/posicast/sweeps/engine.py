@@ -33,8 +33,9 @@ from .store import Store, open_store
 __all__ = ["sweep", "local_cluster", "run_batch", "BatchOutput", "SchedulerUnreachable", "WorkerFailure", "scalars",
            "default_batch_size"]
 
-#: Batches aim at this many per worker (load balance) and hold at most MAX_BATCH points.
-BATCHES_PER_WORKER = 8
+#: Batches aim at this many per worker (load balance: the last task of a sweep leaves the other workers idle)
+#: and hold at most MAX_BATCH points.
+BATCHES_PER_WORKER = 16
 MAX_BATCH = 64
 #: Tasks in flight per worker (the rest are submitted as these finish).
 IN_FLIGHT_PER_WORKER = 4
@@ -115,7 +116,7 @@ def default_batch_size(n_points: int, workers: int) -> int:
     """About :data:`BATCHES_PER_WORKER` tasks per worker, at most :data:`MAX_BATCH` points a task.
 
     >>> default_batch_size(400, 2)
-    25
+    13
     """
     n_points, workers = v.integer(n_points, "n_points", 1), v.integer(workers, "workers", 1)
     return int(max(1, min(MAX_BATCH, math.ceil(n_points / (BATCHES_PER_WORKER * max(1, workers))))))
