@@ -40,6 +40,12 @@ def _noop(x: float) -> float:
     return x
 
 
+def _waiting_point(gain: float, delay_error: float) -> float:
+    """30 ms that do not use the CPU (a point waiting on I/O or a remote solver): Dask's own scaling."""
+    time.sleep(0.03)
+    return gain * delay_error
+
+
 def _fixed_work(n: int = 40) -> float:
     """``n`` chart points in a row, no Dask in between: the machine's own 2-process scaling (the ceiling)."""
     t = time.perf_counter()
@@ -107,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
             batches = r2.timing.tasks
             assert r2.same_as(r) and r["stable"].tolist() == ref, "parallel, serial and plain results differ"
             reference = r
+    # the framework alone: the same sweep of 30 ms points that wait instead of computing
+    with tempfile.TemporaryDirectory() as tmp:
+        ws = sweep(_waiting_point, params, client="serial", store=Path(tmp) / "ws.zarr", progress=False).timing
+        wp = sweep(_waiting_point, params, client=client, store=Path(tmp) / "wp.zarr", progress=False).timing
     client.close()
     cluster.close()
 
@@ -123,6 +133,9 @@ def main(argv: list[str] | None = None) -> int:
     stable = int(np.count_nonzero(reference["stable"])) if reference is not None else 0
     print(f"\nspeed-up, 2 workers vs the serial sweep: {ms / mpar:.2f}x; vs the plain loop: {mp / mpar:.2f}x "
           "(target >= 1.7)")
+    print(f"the framework alone ({n} points of 30 ms that wait, not compute): serial {ws.wall:.2f} s, 2 workers "
+          f"{wp.wall:.2f} s: {ws.wall / wp.wall:.2f}x; overhead per task {ws.overhead_per_task * 1e3:.1f} ms serial, "
+          f"{wp.overhead_per_task * 1e3:.1f} ms on the cluster ({wp.tasks} tasks)")
     print(f"the machine's 2-process ceiling now: {ceiling:.2f}x (the same 40 points on one worker alone, "
           f"{alone:.2f} s, and on both at once, {both:.2f} s each)")
     print(f"Dask round trip of an empty task: {roundtrip * 1e3:.2f} ms (median of 200); LocalCluster start-up "
