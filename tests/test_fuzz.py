@@ -891,7 +891,49 @@ def entry_table() -> list[Entry]:
     for name in ("simulation_example", "flexible_link", "gantry_crane", "two_mass", "flexible_joint_robot",
                  "sampled_28hz", "two_mass_plants"):
         table.append(E(name, lambda _f=getattr(cases, name), **k: _f(**k), lambda: {}, {}))
+    table += _sweep_entries(E)  # issue #19
     return table
+
+
+# ---- issue #19: posicast.sweep (serial here: a LocalCluster per call would not fit the per-call limit)
+def _vibration_sweep(store: Any = None) -> Any:
+    sweep = importlib.import_module("posicast.sweeps").sweep
+    return sweep(functools.partial(posicast.residual_vibration, ZV()), {"omega": [9.0, 10.0], "zeta": [0.0, 0.03]},
+                 client="serial", store=store, progress=False)
+
+
+@functools.lru_cache(maxsize=None)
+def SWEPT():
+    return _vibration_sweep()
+
+
+@functools.lru_cache(maxsize=None)
+def SWEEP_STORE() -> str:
+    path = str(DATA_DIR() / "swept.zarr")
+    _vibration_sweep(path)
+    return path
+
+
+def _sweep_entries(E: Callable[..., Entry]) -> list[Entry]:
+    sweeps = importlib.import_module("posicast.sweeps")
+    no_nan_but_failed_points = lambda paths: [p for p in paths if ".values[" not in p and ".seconds[" not in p]  # noqa: E731
+    return [
+        E("sweep", lambda **k: sweeps.sweep(**k),
+          lambda: {"function": functools.partial(posicast.residual_vibration, ZV()),
+                   "parameters": {"omega": [9.0, 10.0], "zeta": [0.03]}, "client": "serial", "progress": False,
+                   "connect_timeout": 0.3},
+          {"function": "object", "parameters": "object", "n": "int", "seed": "int", "workers": "int",
+           "batch_size": "int", "progress": "object", "overwrite": "bool", "connect_timeout": "real",
+           "store": "path_out"}, nan_filter=no_nan_but_failed_points, writes=True, timeout=6.0),
+        E("load", lambda **k: sweeps.load(**k), lambda: {"store": SWEEP_STORE()}, {"store": "path_in"}),
+        E("make_space", lambda **k: sweeps.make_space(**k), lambda: {"parameters": {"x": [1.0, 2.0]}},
+          {"parameters": "object", "n": "int", "seed": "int"}),
+        E("default_batch_size", lambda **k: sweeps.default_batch_size(**k), lambda: {"n_points": 400, "workers": 2},
+          {"n_points": "int", "workers": "int"}),
+        E("SweepResult.parameter", lambda **k: SWEPT().parameter(**k), lambda: {"name": "omega"}, {"name": "str"}),
+        E("SweepResult.plot", lambda **k: SWEPT().plot(**k), lambda: {"value": "value"},
+          {"value": "str", "ax": "object"}),
+    ]
 
 
 # Public names that are not callables taking arguments, or result types built by the library, with the
@@ -967,6 +1009,14 @@ NOT_CALLED = {
     "InverseStability": "result of inverse_stability",
     "OrderChoice": "result of highest_multiplicity",
     "SparseTaps": "result of discretize (DiscreteShaper.sparse)",
+    "SweepResult": "result of sweep: SweepResult.parameter and .plot driven",
+    "local_cluster": "starts worker processes (seconds): driven in tests/test_sweep.py, its workers checked there",
+    "Space": "result of make_space",
+    "Failure": "result: SweepResult.failures entries",
+    "Timing": "result: SweepResult.timing",
+    "SchedulerUnreachable": "exception class",
+    "WorkerFailure": "exception class",
+    "StoreMismatch": "exception class",
 }
 ALIASES: dict[str, tuple[str, ...]] = {}
 

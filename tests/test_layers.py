@@ -18,6 +18,7 @@ Layers (low to high):
    applications.  ``firmware`` (what each printer firmware runs) is imported by
    ``identification`` (the calibration's recommendations) and imports only shapers;
    it shares the layer, and a sideways import within a layer is allowed.
+4.5. ``sweeps``: runs the applications over grids and draws (on Dask); above them, below io and cli.
 5. ``io`` (export) and ``testing`` (synthetic data, brute-force region check).
 6. ``cli``, ``__main__`` and the package's ``__init__`` (the façade that re-exports
    the public names: nothing inside posicast may import ``posicast`` itself).
@@ -42,12 +43,13 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 PKG = SRC / "posicast"
 
-LAYERS: dict[str, int] = {
+LAYERS: dict[str, float] = {
     "_validate": 0, "_lazy": 0,
     "core": 1, "modes": 1,
     "shapers": 2, "spectra": 2,
     "loops": 3, "cases": 3,
     "analysis": 4, "simulation": 4, "tune": 4, "identification": 4, "firmware": 4, "qft": 4,
+    "sweeps": 4.5,  # issue #19: maps the applications over parameter spaces; io and cli may use it
     "io": 5, "testing": 5,
     "cli": 6, "commands": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
 }
@@ -74,7 +76,7 @@ def _module_name(path: Path) -> str:
     return ".".join(parts)
 
 
-def _layer_of(module: str) -> int:
+def _layer_of(module: str) -> float:
     """The layer of a posicast module name (``posicast.tune.design`` -> layer of ``tune``)."""
     parts = module.split(".")
     key = parts[1] if len(parts) > 1 else ""

@@ -40,6 +40,9 @@ Identification and printer calibration (:mod:`posicast.identification`)
     ``identify``, ``calibrate``, ``Identification``, ``Interval``, ``Calibration``, ``NoModeFound``.
 Export (:mod:`posicast.io`)
     ``export_shaper`` (sparse or dense taps, forward or inverse, JSON or compilable C).
+Sweeps (:mod:`posicast.sweeps`; Dask and Zarr are imported when a sweep runs)
+    ``sweep``: a function over a grid or seeded draws, on local processes or a Dask cluster,
+    persisted as results arrive and resumable.
 Case studies
     :mod:`posicast.cases` (the seeds' plants, each with its source).
 
@@ -97,6 +100,8 @@ _PUBLIC: dict[str, str] = {
     "Interval": ".identification", "Calibration": ".identification", "NoModeFound": ".identification",
     # export
     "export_shaper": ".io",
+    # sweeps
+    "sweep": ".sweeps",
     # case studies
     "cases": ".cases",
 }
@@ -114,6 +119,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and IDEs (never executed)
     from .shapers import Optimality, OptimalShaper, OrderChoice, highest_multiplicity, shortest_shaper, zplane_shaper
     from .io import export_shaper
     from .simulation import SampledLoop, ShaperFilter, SimulationResponse, sampled_loop, shape_signal, simulate
+    from .sweeps import sweep
     from .spectra import Roots, difference_spectrum, poles, rightmost, roots, spectral_abscissa, stability, zeros
     from .tune import Constraint, Region, TuningResult, tune_pd, tune_pi, tune_pid
 
@@ -141,6 +147,7 @@ __all__ = [
     "PlantSet", "qft_design", "QFTResult", "percent_vibration", "model_matching",
     "identify", "calibrate", "Identification", "Interval", "Calibration", "NoModeFound",
     "export_shaper",
+    "sweep",
     "cases",
 ]
 

@@ -1,5 +1,5 @@
 """Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``export``, ``identify``, ``calibrate``, ``tune``,
-``qft``.
+``qft``, ``sweep`` (issue #19: :mod:`posicast.sweeps.command` runs it).
 
 ``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
 (one line on stderr, no configuration printed).  Every error (bad argument,
@@ -163,7 +163,51 @@ def _build_parser() -> _Parser:
     q.add_argument("--structure", default="lead,lead,lead", help="controller sections, comma-separated")
     q.add_argument("--json", action="store_true", help="machine-readable output")
     q.add_argument("--plot", help="write the Nichols chart with the bounds (png, pdf, svg)")
+
+    _add_sweep_parser(sub)
     return parser
+
+
+def _add_sweep_parser(sub: Any) -> None:
+    """The ``sweep`` subcommand and its four sweeps on the CLI's subparsers ``sub``."""
+    s = sub.add_parser("sweep", help="sweeps on Dask: stability charts, Monte Carlo, calibration farms")
+    kinds = s.add_subparsers(dest="sweep", required=True, parser_class=type(s))
+    c = kinds.add_parser("chart", help="certified stability of seed 000's inverse-ZV loop over gain x delay error")
+    c.add_argument("--gain", default="0.05:1.5:30", help="controller gain values (default 0.05:1.5:30)")
+    c.add_argument("--delay-error", default="-0.5:0.5:11", help="relative shaper delay errors (default -0.5:0.5:11)")
+    m = kinds.add_parser("montecarlo", help="seed 003's two-mass loop over c1, c2, k2 (uniform draws)")
+    m.add_argument("--n", type=int, default=100, help="draws (default 100)")
+    m.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
+    m.add_argument("--grid27", action="store_true", help="the seed's 27 plants instead of draws")
+    m.add_argument("--shaper", default="zvdk", help="shaper kind for the nominal mode (default zvdk: ZVD^2)")
+    m.add_argument("--architecture", default="control_action", choices=("control_action", "feedforward"),
+                   help="the shaper inside the loop (seed 003, default) or in front of it")
+    m.add_argument("--no-simulate", action="store_true", help="skip the step response (overshoot, settling)")
+    m.add_argument("--value", default="ms", help="value to histogram with --plot (default ms)")
+    k = kinds.add_parser("calibrate", help="a folder of resonance-test logs to one table")
+    k.add_argument("folder", help="directory of Klipper logs / PSD files")
+    k.add_argument("--pattern", default="*.csv", help="file glob (default *.csv)")
+    k.add_argument("--firmware", default="klipper", help="klipper, reprapfirmware, marlin or prusa")
+    f = kinds.add_parser("function", help="any importable function over a grid or seeded draws")
+    f.add_argument("target", help="MODULE:NAME of a function taking the parameters as keywords")
+    f.add_argument("--grid", action="append", metavar="NAME=VALUES", help="a grid axis (repeat)")
+    f.add_argument("--uniform", action="append", metavar="NAME=LOW:HIGH", help="uniform draws (repeat)")
+    f.add_argument("--n", type=int, help="draws (with --uniform)")
+    f.add_argument("--seed", type=int, help="seed of the draws (with --uniform)")
+    f.add_argument("--value", help="value to draw with --plot (a 2-D grid)")
+    for p in (c, m, k, f):
+        g = p.add_argument_group("execution")
+        where = g.add_mutually_exclusive_group()
+        where.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
+        where.add_argument("--workers", type=int, help="local worker processes (default: the CPU count)")
+        where.add_argument("--serial", action="store_true", help="in this process, without Dask")
+        g.add_argument("--store", help="Zarr directory: results persist as they arrive; rerun to resume")
+        g.add_argument("--overwrite", action="store_true", help="discard what --store holds")
+        g.add_argument("--batch-size", type=int, help="points per task (default: about 16 tasks per worker)")
+        g.add_argument("--timeout", type=float, default=10.0, help="seconds to reach --scheduler (default 10)")
+        g.add_argument("--csv", help="write the table (one row per point) to this .csv file")
+        g.add_argument("--plot", help="write a figure (png, pdf, svg)")
+        g.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 # Subcommand -> module of posicast.commands whose run(args) it calls (imported when it runs).
@@ -171,7 +215,7 @@ _COMMANDS = {
     "design": "shaping", "kinds": "shaping", "sensitivity": "shaping", "export": "export",
     "identify": "identification", "calibrate": "identification",
     "tune": "tuning",
-    "qft": "qft",
+    "qft": "qft", "sweep": "sweep",
 }
 
 # Output-path options checked by _run before any subcommand starts work.

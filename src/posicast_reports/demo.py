@@ -38,6 +38,7 @@ from .identification_report import identification_section
 from .optimal_report import optimal_section
 from .seed001_report import seed001_section
 from .seed003_report import seed003_section
+from .sweep_report import sweep_section
 
 CRANE = ("seed 001 gantry crane sway mode", Mode(5.49, 0.008))
 LINK = ("seed 000 Quanser flexible-link mode", Mode(8.98, 0.14))
@@ -362,6 +363,8 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     say("identification and calibration")
     optimal_section(report)
     say("optimal shapers")
+    sweep_section(report)
+    say("sweeps (seed 000 stability chart)")
     report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
     path = report.write()
     say(f"wrote {path}")
