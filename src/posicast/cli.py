@@ -90,7 +90,8 @@ def _build_parser() -> _Parser:
     x.add_argument("--sample-rate", type=float, required=True, help="controller sample rate [Hz]")
     x.add_argument("--zplane", action="store_true",
                    help="design in the z plane at 1/sample-rate (zv/zvd/zvdd/zvddd/zvdk, seed 002 eq. 8)")
-    x.add_argument("--stride", default=None, help="with --zplane: samples between taps, or 'positive'")
+    x.add_argument("--stride", default=None,
+                   help="with --zplane: samples between taps, or 'positive' (default: the smallest with nonnegative taps)")
     # the choices are posicast.io.export's EXPORT_FORMATS/FORMS/PRECISIONS, spelled out so that building the
     # parser imports nothing (tests/test_cli.py checks they agree)
     x.add_argument("--format", choices=("json", "c"), default="c", help="c (default) or json")
