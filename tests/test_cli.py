@@ -223,3 +223,14 @@ def test_export_choices_match_the_exporter():
     assert choices["format"] == set(EXPORT_FORMATS)
     assert choices["form"] == set(EXPORT_FORMS)
     assert choices["precision"] == set(EXPORT_PRECISIONS)
+
+
+def test_a_warning_is_one_line_on_stderr(capsys):
+    """A library warning while a subcommand runs (here: seed 002's adjacent taps at a short period) is one
+    'posicast: warning: ...' line, and the command still succeeds."""
+    from posicast.cli import main
+
+    rc = main(["export", "zvd", "--freq-hz", "28", "--zeta", "0.05", "--sample-rate", "1000", "--zplane",
+               "--stride", "1", "--format", "json"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 0 and len(err) == 1 and err[0].startswith("posicast: warning: the z-plane shaper")

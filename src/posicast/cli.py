@@ -34,6 +34,7 @@ import importlib
 import os
 import sys
 import traceback
+import warnings
 from typing import Any, Sequence
 
 __all__ = ["main"]
@@ -254,6 +255,13 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     return (_OneLineError, ValueError, TypeError, OSError) + ((rootfinder.RootFindingError,) if rootfinder else ())
 
 
+def _one_line_warning(message: Warning | str, category: type[Warning], filename: str, lineno: int,
+                      file: Any = None, line: str | None = None) -> None:
+    """A warning raised while a subcommand runs, as one line on stderr (no source line)."""
+    text = str(message).strip().splitlines()
+    print(f"posicast: warning: {text[0] if text else category.__name__}", file=sys.stderr)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``posicast`` command.
 
@@ -263,7 +271,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     traceback with ``POSICAST_TRACEBACK=1``).
     """
     try:
-        return _run(argv)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning  # restored when the block ends
+            return _run(argv)
     except KeyboardInterrupt:
         print("posicast: interrupted", file=sys.stderr)
         return 130
