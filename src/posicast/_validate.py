@@ -220,13 +220,7 @@ def path_for_output(value: Any, name: str, extensions: Any = IMAGE_EXTENSIONS) -
     import os
     from pathlib import Path
 
-    if isinstance(value, bytes) or not isinstance(value, (str, os.PathLike)):
-        raise TypeError(f"{name} must be a file path (str or os.PathLike), got {type(value).__name__}")
-    text = os.fspath(value)
-    if not isinstance(text, str) or not text.strip():
-        raise ValueError(f"{name} must be a file path, got {text!r}")
-    if "\x00" in text:
-        raise ValueError(f"{name} must not contain a NUL character, got {text!r}")
+    text = path_text(value, name)
     exts = tuple(e.lower() for e in extensions)
     if text.endswith(("/", os.sep)):
         raise ValueError(f"{name} {text!r} is a directory path, not a file")
@@ -376,3 +370,26 @@ def ordered_pair(value: Any, name: str, lo: float, hi: float, *, lo_open: bool =
     if a > b:
         raise ValueError(f"{name} must be a (low, high) pair with low <= high, got ({a:g}, {b:g})")
     return a, b
+
+
+# --- review of wave 3: one check of a path argument's text (files and the sweep store's directory)
+def path_text(value: Any, name: str, what: str = "file path") -> str:
+    """The text of a path argument: a non-empty ``str`` or ``os.PathLike`` (not bytes) without NUL.
+
+    >>> path_text("out.csv", "--csv")
+    'out.csv'
+    >>> path_text(b"x", "store", "directory path")
+    Traceback (most recent call last):
+    ...
+    TypeError: store must be a directory path (str or os.PathLike), got bytes
+    """
+    import os
+
+    if isinstance(value, bytes) or not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"{name} must be a {what} (str or os.PathLike), got {type(value).__name__}")
+    text = os.fspath(value)
+    if not isinstance(text, str) or not text.strip():
+        raise ValueError(f"{name} must be a {what}, got {text!r}")
+    if "\x00" in text:
+        raise ValueError(f"{name} must not contain a NUL character, got {text!r}")
+    return text

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import _validate as v
 from .result import STATUS, SweepResult
 from .space import Space
 
@@ -135,13 +136,7 @@ class Store:
 
 
 def _check_path(store: Any) -> str:
-    if isinstance(store, bytes) or not isinstance(store, (str, os.PathLike)):
-        raise TypeError(f"store must be a directory path (str or os.PathLike), got {type(store).__name__}")
-    path = os.fspath(store)
-    if not isinstance(path, str) or not path.strip():
-        raise ValueError(f"store must be a directory path, got {path!r}")
-    if "\x00" in path:
-        raise ValueError(f"store must not contain a NUL character, got {path!r}")
+    path = v.path_text(store, "store", "directory path")
     if os.path.exists(path) and not os.path.isdir(path):
         raise ValueError(f"store {path!r} is a file, not a Zarr directory")
     parent = os.path.dirname(os.path.abspath(path))
