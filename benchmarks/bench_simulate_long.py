@@ -97,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nprevious posicast: {PREVIOUS['seconds']:.0f} s under load, {PREVIOUS['bytes'] / 1e9:.1f} GB "
           f"(~{PREVIOUS['bytes_per_sample']:.0f} B per sample, every signal)")
     for label, ok, secs, per in verdicts:
+        if minutes < 60.0:  # the fixed working space (~26 MB) weighs more per sample on a shorter run
+            print(f"goal ({label}): judged on the one-hour run only (this run: {minutes:g} min, {secs:.1f} s per "
+                  f"hour extrapolated, {per:.1f} B per sample including the fixed working space)")
+            continue
         print(f"goal ({label}): one hour <= {GOAL_SECONDS:.0f} s and <= {GOAL_BYTES_PER_SAMPLE:.0f} B per sample of "
               f"requested output: {'met' if ok else 'NOT met'} ({secs:.1f} s per hour, {per:.1f} B)")
     return 0
