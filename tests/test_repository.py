@@ -29,7 +29,7 @@ def test_no_merge_conflict_markers():
     assert not bad, "merge-conflict markers left in: " + ", ".join(bad)
 
 
-def test_the_check_sees_a_marker(tmp_path):
+def test_the_check_sees_a_marker():
     """The pattern catches a real conflict block (so the test above can fail)."""
     sample = "a\n<<<<<<< HEAD\nx\n=======\ny\n>>>>>>> branch\n"
     assert len(_MARKER.findall(sample)) == 3
