@@ -1,5 +1,11 @@
 """Command line: ``posicast design``, ``sensitivity``, ``kinds``, ``export``, ``identify``, ``calibrate``, ``tune``,
-``qft``, ``sweep`` (issue #19: :mod:`posicast.sweeps.command` runs it).
+``qft``, ``sweep`` (issue #19: :mod:`posicast.sweeps.command` runs it), ``stability`` and ``simulate`` (issue #20);
+``posicast --version``.
+
+Every subcommand takes ``--json``: its result as one JSON document on stdout (no NaN or
+infinity: null), and nothing else there.  Long work shows its progress on stderr (a tqdm
+bar or a line per step, after the first second), so stdout stays parseable; ``--quiet``
+silences it.
 
 ``identify`` and ``calibrate`` exit with status 1 when the data show no resonance
 (one line on stderr, no configuration printed).  Every error (bad argument,
@@ -49,6 +55,31 @@ class _Parser(argparse.ArgumentParser):
         raise _OneLineError(message)
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed package's version, looked up only when asked (no import of posicast's code)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str = argparse.SUPPRESS, **kw: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="print posicast's version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: Any, values: Any, option: Any = None) -> None:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            text = version("posicast")
+        except PackageNotFoundError:  # running from a source tree that was not installed
+            text = "unknown (not installed)"
+        print(f"posicast {text}")
+        parser.exit(0)
+
+
+def _add_output_args(p: argparse.ArgumentParser, progress: bool = False) -> None:
+    """``--json`` (and ``--quiet`` for subcommands whose work can take long) on subcommand ``p``."""
+    p.add_argument("--json", action="store_true", help="print the result as one JSON document on stdout")
+    if progress:
+        p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+
+
 def _add_mode_args(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--omega", type=float, help="natural frequency [rad/s]")
@@ -67,22 +98,25 @@ def _add_param_args(p: argparse.ArgumentParser) -> None:
 
 def _build_parser() -> _Parser:
     parser = _Parser(prog="posicast", description="Time-delay signal shapers for flexible machines.")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
     d = sub.add_parser("design", help="design a shaper and print it")
     d.add_argument("kind", help="shaper kind (see 'posicast kinds')")
     _add_mode_args(d)
     _add_param_args(d)
-    d.add_argument("--json", action="store_true", help="machine-readable output")
+    _add_output_args(d)
 
     s = sub.add_parser("sensitivity", help="plot residual vibration against omega/omega_model")
     s.add_argument("kinds", nargs="+", help="one or more shaper kinds")
     _add_mode_args(s)
     _add_param_args(s)
-    s.add_argument("--out", required=True, help="output image (png, pdf, svg)")
+    s.add_argument("--out", help="output image (png, pdf, svg); needed unless --json")
     s.add_argument("--tol", type=float, default=0.05, help="tolerance line and insensitivity level (default 0.05)")
+    _add_output_args(s)
 
-    sub.add_parser("kinds", help="list the shaper kinds")
+    k = sub.add_parser("kinds", help="list the shaper kinds")
+    _add_output_args(k)
 
     x = sub.add_parser("export", help="export a shaper (or its inverse) for a controller as C or JSON")
     x.add_argument("kind", help="shaper kind (see 'posicast kinds')")
@@ -101,6 +135,7 @@ def _build_parser() -> _Parser:
     x.add_argument("--inverse", action="store_true", help="export 1/S (seed 000 eq. 19-20)")
     x.add_argument("--name", default="shaper", help="C identifier for the arrays and functions")
     x.add_argument("--output", help="write to this file (.h, .c, .json, .txt) instead of standard output")
+    _add_output_args(x)
 
     i = sub.add_parser("identify", help="identify lightly damped modes in a CSV or Klipper file")
     i.add_argument("file", help="CSV with a time column, Klipper accelerometer log or PSD file")
@@ -109,7 +144,7 @@ def _build_parser() -> _Parser:
     i.add_argument("--axis", choices=("x", "y", "z"), help="tested axis of a Klipper file whose name does not say")
     i.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
     i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
-    i.add_argument("--json", action="store_true", help="machine-readable output")
+    _add_output_args(i, progress=True)
 
     c = sub.add_parser("calibrate", help="identify modes in resonance tests and recommend firmware settings")
     c.add_argument("files", nargs="+", metavar="FILE",
@@ -131,9 +166,10 @@ def _build_parser() -> _Parser:
     c.add_argument("--input", help="input column (input/output CSV)")
     c.add_argument("--output", help="output column (input/output CSV)")
     c.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
-    c.add_argument("--json", action="store_true", help="machine-readable output")
+    c.add_argument("--band", type=float, nargs=2, metavar=("FMIN", "FMAX"),
+                   help="search for modes only in this band [Hz] (inside the band the test excited)")
     c.add_argument("--plot", help="write the calibration figure (png, pdf, svg)")
-    c.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    _add_output_args(c, progress=True)
 
     t = sub.add_parser("tune", help="robust PD/PI for a loop with a shaper (H-infinity regions, seed 001)")
     src = t.add_mutually_exclusive_group(required=True)
@@ -154,20 +190,82 @@ def _build_parser() -> _Parser:
     t.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1) (pd only)")
     for g in ("kp", "ki", "kd"):
         t.add_argument(f"--{g}-range", type=float, nargs=2, metavar=("LOW", "HIGH"), help=f"bounds of {g}")
-    t.add_argument("--json", action="store_true", help="machine-readable output")
     t.add_argument("--plot", help="write the region in the gain plane (png, pdf, svg)")
-    t.add_argument("--nyquist", help="write the Nyquist plot with the Ms circle")
+    t.add_argument("--nyquist", help="write the Nyquist plot, zoomed on -1 with the Ms circle (png, pdf, svg)")
+    _add_output_args(t, progress=True)
 
     q = sub.add_parser("qft", help="QFT inner-loop model matching over seed 003's uncertain two-mass plants")
     q.add_argument("--uncertainty", type=float, default=50.0, help="c1, c2, k2 uncertainty [%%] (default 50)")
     q.add_argument("--stability", type=float, default=1.413, help="bound on |PG/(1+PG)| (default 1.413, eq. 2)")
     q.add_argument("--matching", type=float, default=0.1, help="bound on |PGF/(1+PG) - F_m| (default 0.1, eq. 3)")
     q.add_argument("--structure", default="lead,lead,lead", help="controller sections, comma-separated")
-    q.add_argument("--json", action="store_true", help="machine-readable output")
     q.add_argument("--plot", help="write the Nichols chart with the bounds (png, pdf, svg)")
+    _add_output_args(q, progress=True)
 
     _add_sweep_parser(sub)
+    _add_stability_parser(sub)
+    _add_simulate_parser(sub)
     return parser
+
+
+_SYSTEM_SYNTAX = ("descending powers, e.g. '1 0.2 4'; a term with a delay after @ and terms joined by ';': "
+                  "'1 0.2 4; 2 @0.5' is s^2 + 0.2 s + 4 + 2 e^(-0.5 s)")
+
+
+def _add_system_args(p: argparse.ArgumentParser) -> None:
+    """A plant (``--case`` or ``--num/--den`` with ``--delay``), optionally a controller, a shaper and an
+    architecture: ``stability`` and ``simulate`` (the parsing is :mod:`posicast.commands.systems`)."""
+    g = p.add_argument_group("system (the plant G)")
+    src = g.add_mutually_exclusive_group(required=True)
+    src.add_argument("--case", help="a seed plant from posicast.cases (e.g. gantry_crane); its load F comes along")
+    src.add_argument("--num", help="numerator: " + _SYSTEM_SYNTAX)
+    g.add_argument("--den", help="denominator (with --num), same syntax")
+    g.add_argument("--delay", type=float, default=0.0, help="dead time of the plant [s] (default 0)")
+    c = p.add_argument_group("loop (with a controller; without one the plant alone is analysed)")
+    c.add_argument("--kp", type=float, help="proportional gain")
+    c.add_argument("--ki", type=float, help="integral gain")
+    c.add_argument("--kd", type=float, help="derivative gain")
+    c.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1)")
+    c.add_argument("--controller-num", help="controller numerator (instead of --kp/--ki/--kd), same syntax")
+    c.add_argument("--controller-den", help="controller denominator (default 1)")
+    c.add_argument("--architecture", default=None,
+                   choices=("feedforward", "control_action", "inverse_shaper"),
+                   help="where the shaper sits (default control_action)")
+    h = p.add_argument_group("shaper")
+    h.add_argument("--shaper", help="shaper kind (see 'posicast kinds'); default: none")
+    h.add_argument("--omega", type=float, help="shaper mode frequency [rad/s] (default: the case's mode)")
+    h.add_argument("--zeta", type=float, help="shaper mode damping (default: the case's mode)")
+
+
+def _add_stability_parser(sub: Any) -> None:
+    """``posicast stability``: certified verdict, spectral abscissa and rightmost roots of a system or loop."""
+    p = sub.add_parser("stability", help="certified stability, spectral abscissa and rightmost roots of a "
+                                         "system or loop")
+    _add_system_args(p)
+    p.add_argument("--roots", type=int, default=6, help="how many rightmost roots to print (default 6)")
+    p.add_argument("--plot", help="write the spectrum (poles in the complex plane; png, pdf, svg)")
+    _add_output_args(p, progress=True)
+
+
+def _add_simulate_parser(sub: Any) -> None:
+    """``posicast simulate``: a loop's response to a step or a given reference, as CSV and/or a figure."""
+    p = sub.add_parser("simulate", help="step (or given input) response of a loop: CSV and/or figure")
+    _add_system_args(p)
+    p.add_argument("--t-end", type=float, default=10.0, help="end of the run [s] (default 10)")
+    p.add_argument("--dt", type=float, help="time step [s] (default: 1/sample-rate, or t-end/5000)")
+    p.add_argument("--sample-rate", type=float,
+                   help="controller and shaper sampled at this rate [Hz] (default: continuous)")
+    p.add_argument("--step-time", type=float, default=0.0, help="time of the reference step [s] (default 0)")
+    p.add_argument("--step", type=float, default=1.0, help="height of the reference step (default 1)")
+    p.add_argument("--input", metavar="FILE", help="reference from a CSV file with columns t,w (instead of a step)")
+    p.add_argument("--disturbance", type=float, nargs=2, metavar=("TIME", "SIZE"),
+                   help="an output disturbance step d of SIZE at TIME [s]")
+    p.add_argument("--input-disturbance", type=float, nargs=2, metavar=("TIME", "SIZE"),
+                   help="an input disturbance step di of SIZE at TIME [s]")
+    p.add_argument("--signals", default="w,u,z,y", help="signals to keep, comma-separated (default w,u,z,y)")
+    p.add_argument("--out", help="write the response as CSV (.csv)")
+    p.add_argument("--plot", help="write the response figure (png, pdf, svg)")
+    _add_output_args(p, progress=True)
 
 
 def _add_sweep_parser(sub: Any) -> None:
@@ -210,6 +308,7 @@ def _add_sweep_parser(sub: Any) -> None:
         g.add_argument("--csv", help="write the table (one row per point) to this .csv file")
         g.add_argument("--plot", help="write a figure (png, pdf, svg)")
         g.add_argument("--quiet", action="store_true", help="no progress bar")
+        g.add_argument("--json", action="store_true", help="print the result as one JSON document on stdout")
 
 
 # Subcommand -> module of posicast.commands whose run(args) it calls (imported when it runs).
@@ -218,6 +317,8 @@ _COMMANDS = {
     "identify": "identification", "calibrate": "identification",
     "tune": "tuning",
     "qft": "qft", "sweep": "sweep",
+    "stability": "stability",
+    "simulate": "simulate",
 }
 
 # Output-path options checked by _run before any subcommand starts work.
@@ -229,6 +330,8 @@ def _run(argv: Sequence[str] | None) -> int:
     figures = importlib.import_module("posicast.commands.figures")
     for opt in _OUTPUT_OPTIONS:  # every output path is checked before any work
         val = getattr(args, opt, None)
+        if opt == "out" and args.command == "simulate":  # a CSV table there: checked by its module first
+            continue
         if val is not None:
             figures.output_path(val, f"--{opt}")
     return importlib.import_module(f"posicast.commands.{_COMMANDS[args.command]}").run(args)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from typing import Any
 
 from .. import _validate as v
 from ..io.export import export_shaper
 from ..shapers import registry  # registry.design at call time: the suite patches it to test status 70
+from .figures import write_atomic
 from .shaping import mode_of, shaper_params
 
 __all__ = ["run"]
@@ -32,9 +34,14 @@ def run(args: argparse.Namespace) -> int:
     S = registry.design(kind, mode_of(args), **params)
     text = export_shaper(S, fs, args.format, name=args.name, form=args.form, inverse=args.inverse,
                          precision=args.precision)
-    if out is None:
+    if out is not None:  # atomically, as the figures: an error leaves no file
+        write_atomic(out, args.output, "--output", lambda fh: fh.write(text.encode()))
+    if args.json:  # one document: the shaper, and the export itself unless it went to --output
+        content: Any = None if out is not None else (json.loads(text) if args.format == "json" else text)
+        print(json.dumps({"shaper": S.to_dict(), "sample_rate": fs, "format": args.format, "form": args.form,
+                          "inverse": args.inverse, "output": args.output, "export": content}, indent=2))
+    elif out is None:
         sys.stdout.write(text)
     else:
-        out.write_text(text)
         print(f"wrote {out}")
     return 0

@@ -10,14 +10,14 @@ import os
 import tempfile
 from pathlib import Path
 from types import ModuleType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, BinaryIO, Callable
 
 from .. import _validate as v
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["pyplot", "output_path", "save_atomic"]
+__all__ = ["pyplot", "output_path", "save_atomic", "write_atomic"]
 
 
 def pyplot() -> ModuleType:
@@ -42,21 +42,27 @@ def save_atomic(fig: Figure, out: str, option: str = "--plot") -> None:
     try:
         target = output_path(out, option)
         fmt = target.suffix.lower()[1:]
-        tmp = None
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-            with os.fdopen(fd, "wb") as fh:
-                fig.savefig(fh, format=fmt, dpi=110, bbox_inches="tight")
-            mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
-            os.umask(mask)
-            os.chmod(tmp, 0o666 & ~mask)
-            os.replace(tmp, target)
-            tmp = None
-        except (OSError, ValueError, RuntimeError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
-            raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
-        finally:
-            if tmp is not None and os.path.exists(tmp):
-                os.unlink(tmp)
+        write_atomic(target, out, option, lambda fh: fig.savefig(fh, format=fmt, dpi=110, bbox_inches="tight"))
     finally:
         pyplot().close(fig)
+
+
+def write_atomic(target: Path, out: str, option: str, write: Callable[[BinaryIO], Any]) -> None:
+    """Call ``write(fh)`` on a temporary file beside ``target`` and rename it onto ``target`` (see
+    :func:`save_atomic`; ``out`` is the user's spelling of the path, for the message)."""
+    tmp = None
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+        mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)
+        os.replace(tmp, target)
+        tmp = None
+    except (OSError, ValueError, RuntimeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
+        raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
+    finally:
+        if tmp is not None and os.path.exists(tmp):
+            os.unlink(tmp)

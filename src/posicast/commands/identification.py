@@ -6,8 +6,6 @@ import argparse
 import json
 import math
 import sys
-import time
-from typing import Callable
 
 from .. import _validate as v
 from ..identification import NoModeFound, calibrate, load_csv
@@ -17,6 +15,7 @@ from ..identification.plots import calibration_plot
 from ..identification.resonance import resonance_data
 from ..identification.significance import MAX_MODES
 from .figures import pyplot, save_atomic
+from .progress import steps, working
 
 __all__ = ["run"]
 
@@ -26,23 +25,24 @@ def run(args: argparse.Namespace) -> int:
         if args.command == "calibrate":
             return _calibrate_cmd(args)
         nm = _n_modes(args.modes)  # arguments before the file is read
-        ds = load_csv(args.file)
-        if args.input is not None:
-            if args.output is None:
-                raise ValueError("--output is required with --input")
-            r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm,
-                         method=args.method or "oe")
-        elif ds.kind in ("klipper_raw", "klipper_psd"):
-            if args.output is not None or args.method not in (None, "psd"):
-                raise ValueError("Klipper files are identified from their spectrum (method psd); "
-                                 "--output and other methods do not apply")
-            r = identify_resonances(resonance_data(ds, args.axis), nm)
-        elif args.output is not None:
-            method = args.method or "psd"
-            r = identify(ds.t, None, ds.column(args.output), n_modes=nm if method == "psd" else
-                         (1 if nm == "auto" else nm), method=method)
-        else:
-            raise ValueError("--output is required (or --input and --output) for CSV data")
+        with working(f"identifying modes in {args.file}", args.quiet):
+            ds = load_csv(args.file)
+            if args.input is not None:
+                if args.output is None:
+                    raise ValueError("--output is required with --input")
+                r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm,
+                             method=args.method or "oe")
+            elif ds.kind in ("klipper_raw", "klipper_psd"):
+                if args.output is not None or args.method not in (None, "psd"):
+                    raise ValueError("Klipper files are identified from their spectrum (method psd); "
+                                     "--output and other methods do not apply")
+                r = identify_resonances(resonance_data(ds, args.axis), nm)
+            elif args.output is not None:
+                method = args.method or "psd"
+                r = identify(ds.t, None, ds.column(args.output), n_modes=nm if method == "psd" else
+                             (1 if nm == "auto" else nm), method=method)
+            else:
+                raise ValueError("--output is required (or --input and --output) for CSV data")
     except NoModeFound as exc:
         print(f"posicast: {exc}", file=sys.stderr)
         return 1
@@ -68,7 +68,8 @@ def _calibrate_cmd(args: argparse.Namespace) -> int:
     cal = calibrate(args.files, firmware=firmware, axis=args.axis, at=labels, vtol=args.vtol, margin=margin,
                     max_smoothing=args.max_smoothing, slack=args.slack, klipper_version=args.klipper_version,
                     input=args.input,
-                    output=args.output, n_modes=_n_modes(args.modes), progress=_progress(args.quiet))
+                    output=args.output, n_modes=_n_modes(args.modes), progress=steps(args.quiet),
+                    band=None if args.band is None else tuple(args.band))
     if args.plot:  # everything computed: only now write
         pyplot()  # the Agg backend before the figure is drawn
         save_atomic(calibration_plot(cal), args.plot)
@@ -91,18 +92,6 @@ def _n_modes(text: str) -> int | str:
     if not 1 <= n <= MAX_MODES:
         raise ValueError(f"--modes must be an integer in [1, {MAX_MODES}] or 'auto', got {n}")
     return n
-
-
-def _progress(quiet: bool) -> Callable[[str], None]:
-    """Progress lines on stderr, once the work has taken more than a second (quick runs stay silent)."""
-    start = time.monotonic()
-
-    def say(msg: str) -> None:
-        elapsed = time.monotonic() - start
-        if not quiet and elapsed > 1.0:
-            print(f"[{elapsed:5.1f} s] {msg}", file=sys.stderr, flush=True)
-
-    return say
 
 
 def _at_labels(text: str | None, n: int) -> list[dict[str, float]] | None:

@@ -12,6 +12,7 @@ from .. import _validate as v
 from ..cases import ALL as CASES
 from ..qft import PlantSet, qft_design
 from .figures import pyplot, save_atomic
+from .progress import working
 
 __all__ = ["run"]
 
@@ -20,8 +21,9 @@ def run(args: argparse.Namespace) -> int:
     """Design G for the two-mass plant set; print it (or JSON) and write the Nichols chart if asked."""
     plants = PlantSet.two_mass(v.real_in_range(args.uncertainty, "--uncertainty", 0.0, 100.0, hi_open=True))
     sections = tuple(x.strip() for x in args.structure.split(",") if x.strip())
-    r = qft_design(plants, CASES["two_mass"].extras["F_m"], stability=args.stability, matching=args.matching,
-                   structure=sections)
+    with working(f"QFT design over {len(plants)} plants", args.quiet):
+        r = qft_design(plants, CASES["two_mass"].extras["F_m"], stability=args.stability, matching=args.matching,
+                       structure=sections)
     sc = r.controller.to_scipy()
     if args.json:
         print(json.dumps({"feasible": r.feasible, "violated": list(r.violated), "margins": dict(r.margins),

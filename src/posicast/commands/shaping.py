@@ -8,7 +8,7 @@ import math
 from typing import Any
 
 from .. import _validate as v
-from ..analysis import insensitivity, sensitivity_plot
+from ..analysis import insensitivity, sensitivity_curve, sensitivity_plot
 from ..modes import Mode
 from ..shapers import registry  # registry.design at call time: the suite patches it to test status 70
 from ..shapers.base import Shaper
@@ -20,12 +20,18 @@ __all__ = ["run"]
 def run(args: argparse.Namespace) -> int:
     """Run ``kinds``, ``design`` or ``sensitivity`` (``args.command``)."""
     if args.command == "kinds":
+        if args.json:
+            print(json.dumps([{"kind": name, "summary": spec.summary, "params": dict(spec.params)}
+                              for name, spec in registry.KINDS.items()], indent=2, default=str))
+            return 0
         for name, spec in registry.KINDS.items():
             params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
             print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
         return 0
-    if args.command == "sensitivity":  # the tolerance before any design work
+    if args.command == "sensitivity":  # the tolerance and the output before any design work
         v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
+        if args.out is None and not args.json:
+            raise ValueError("--out is required (the figure), unless --json")
     mode = mode_of(args)
     if args.command == "design":
         kind = args.kind.lower()
@@ -36,18 +42,27 @@ def run(args: argparse.Namespace) -> int:
             _print_shaper(S)
         return 0
     # sensitivity: design, analyse, draw; write last
-    pyplot()  # the Agg backend before sensitivity_plot draws
     shapers = [registry.design(k.lower(), mode, **shaper_params(args, k.lower())) for k in args.kinds]
     ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
-    lines = []
+    rows = []
     for S in shapers:
         ins = insensitivity(S, args.tol, reference=ref)
-        lines.append(f"{S.name:8s} duration {S.duration:.6g} s, insensitivity at {args.tol:g}: {ins.width:.4f}")
-    fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
-    ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
-    save_atomic(fig, args.out, "--out")
-    for line in lines:
-        print(line)
+        curve = sensitivity_curve(S, reference=ref)
+        rows.append({"kind": S.name, "duration": S.duration if math.isfinite(S.duration) else None,
+                     "insensitivity": ins.width, "band": [ins.low, ins.high],
+                     "ratio": curve.ratio.tolist(), "vibration": curve.vibration.tolist()})
+    if args.out is not None:
+        pyplot()  # the Agg backend before sensitivity_plot draws
+        fig, ax = sensitivity_plot(shapers, vtol=args.tol, reference=ref)
+        ax.set_title(f"omega = {mode.omega:.4g} rad/s, zeta = {mode.zeta:.4g}")
+        save_atomic(fig, args.out, "--out")
+    if args.json:
+        print(json.dumps({"omega": mode.omega, "zeta": mode.zeta, "tol": args.tol, "reference": ref,
+                          "shapers": rows, "out": args.out}, indent=2))
+        return 0
+    for r in rows:
+        dur = "infinite" if r["duration"] is None else f"{r['duration']:.6g} s"
+        print(f"{r['kind']:8s} duration {dur}, insensitivity at {args.tol:g}: {r['insensitivity']:.4f}")
     print(f"wrote {args.out}")
     return 0
 

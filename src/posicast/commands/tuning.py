@@ -17,6 +17,7 @@ from ..tune import TuningResult, tune_pd, tune_pi
 from ..tune.constraints import sensitivity_constraint
 from ..tune.family import pd_family
 from .figures import pyplot, save_atomic
+from .progress import working
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -32,11 +33,13 @@ def run(args: argparse.Namespace) -> int:
         if mode is None:
             raise ValueError("--shaper needs the mode: --omega and --zeta (or --case)")
         S = registry.design(args.shaper.lower(), mode)
-    if args.controller == "pd":
-        r = tune_pd(G, S, _architecture(args), ms=args.ms, derivative_filter=args.derivative_filter,
-                    kp_range=args.kp_range, kd_range=args.kd_range, F=F)
-    else:
-        r = tune_pi(G, S, _architecture(args), ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range, F=F)
+    with working(f"tuning the {args.controller.upper()} controller (H-infinity regions)", args.quiet):
+        if args.controller == "pd":
+            r = tune_pd(G, S, _architecture(args), ms=args.ms, derivative_filter=args.derivative_filter,
+                        kp_range=args.kp_range, kd_range=args.kd_range, F=F)
+        else:
+            r = tune_pi(G, S, _architecture(args), ms=args.ms, kp_range=args.kp_range, ki_range=args.ki_range,
+                        F=F)
     figures = _tune_figures(args, r)
     for fig, out, opt in figures:  # everything computed: only now write
         save_atomic(fig, out, opt)

@@ -19,6 +19,7 @@ One or several files (Klipper raw logs, Klipper PSD files, or input/output CSV):
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -279,7 +280,8 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
               margin: float = 0.05, max_smoothing: float | None = None, slack: float = 0.01,
               klipper_version: str = "v0.13",
               input: str | None = None, output: str | None = None, method: str | None = None,
-              n_modes: int | str = "auto", progress: Progress | None = None) -> Calibration:
+              n_modes: int | str = "auto", progress: Progress | None = None,
+              band: tuple[float, float] | None = None) -> Calibration:
     """Identify the modes in resonance-test files and recommend what each firmware should run.
 
     Parameters
@@ -309,6 +311,10 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
         For input/output CSV data (output-error identification).
     progress : callable, optional
         Called with a line of text as the work proceeds.
+    band : (float, float), optional
+        Search for modes only between these frequencies [Hz] (resonance-test files): the
+        fitted band is the test's excited band intersected with it.  The firmware settings
+        are still scored on the whole measured spectrum.
 
     Raises
     ------
@@ -325,7 +331,9 @@ def calibrate(paths: str | Path | Sequence[str | Path], *, firmware: str | Seque
     if max_smoothing is not None:
         max_smoothing = v.positive(max_smoothing, "max_smoothing")
     say = progress or (lambda s: None)
-    files = [_identify_file(item, lab, axis, input, output, method, n_modes, say) for item, lab in zip(paths, labels)]
+    band = None if band is None else _check_band(band)
+    files = [_identify_file(item, lab, axis, input, output, method, n_modes, say, band)
+             for item, lab in zip(paths, labels)]
     good = [fr for fr in files if fr.identification is not None]
     if not good:
         msgs = "; ".join(f"{Path(fr.path).name}: {fr.no_mode}" for fr in files)
@@ -417,8 +425,31 @@ def _path_list(paths: object) -> list[str | Path | Dataset]:
     return out
 
 
+def _check_band(band: object) -> tuple[float, float]:
+    """``band`` as two frequencies ``0 <= low < high`` [Hz] (a named error otherwise)."""
+    vals = v.sequence(band, "band", min_len=2)
+    if len(vals) != 2:
+        raise ValueError(f"band must be two frequencies (low, high) in Hz, got {len(vals)} values")
+    lo, hi = (v.real(x, "band") for x in vals)
+    if not 0.0 <= lo < hi:
+        raise ValueError(f"band must satisfy 0 <= low < high [Hz], got ({lo:g}, {hi:g})")
+    return lo, hi
+
+
+def _restrict(rd: ResonanceData, band: tuple[float, float]) -> ResonanceData:
+    """``rd`` with its fitted band narrowed to ``band``; a band outside the excited one is refused."""
+    lo, hi = rd.spectrum.band
+    new = (max(lo, band[0]), min(hi, band[1]))
+    if not new[1] - new[0] >= 4.0 * rd.spectrum.resolution:
+        raise ValueError(f"band ({band[0]:g}, {band[1]:g}) Hz leaves less than 4 bins of the band "
+                         f"{lo:.1f}-{hi:.1f} Hz that {Path(rd.path).name} excited")
+    return dataclasses.replace(rd, spectrum=dataclasses.replace(rd.spectrum, band=new),
+                               notes=rd.notes + (f"modes searched in {new[0]:.1f}-{new[1]:.1f} Hz (band)",))
+
+
 def _identify_file(item: str | Path | Dataset, label: dict[str, float], axis: str | None, input: str | None,
-                   output: str | None, method: str | None, n_modes: int | str, say: Progress) -> FileResult:
+                   output: str | None, method: str | None, n_modes: int | str, say: Progress,
+                   band: tuple[float, float] | None = None) -> FileResult:
     """Read one file and identify its modes: a resonance test's spectrum, or input/output columns by
     :func:`~posicast.identification.identify`; a file without a mode keeps the reason in ``no_mode``."""
     path = item.path if isinstance(item, Dataset) else str(item)
@@ -426,6 +457,8 @@ def _identify_file(item: str | Path | Dataset, label: dict[str, float], axis: st
     ds = item if isinstance(item, Dataset) else load_csv(item)
     if ds.kind in ("klipper_raw", "klipper_psd", "rrf_accelerometer"):  # the last one is refused, with a way
         rd = resonance_data(ds, axis)
+        if band is not None:
+            rd = _restrict(rd, band)
         fr = FileResult(str(path), rd.axis, rd.kind, resonance=rd, label=label)
         say(f"identifying modes in {Path(path).name} ({rd.spectrum.band[0]:.0f}-{rd.spectrum.band[1]:.0f} Hz)")
         try:
@@ -433,6 +466,9 @@ def _identify_file(item: str | Path | Dataset, label: dict[str, float], axis: st
         except NoModeFound as exc:
             fr.no_mode = str(exc)
         return fr
+    if band is not None:
+        raise ValueError(f"{path}: band applies to resonance-test files (Klipper logs and PSD files), not to "
+                         "input/output CSV")
     if input is None or output is None:
         raise ValueError(f"{path}: not a Klipper file; give the input and output columns (--input, --output)")
     fr = FileResult(str(path), axis, "csv", label=label)

@@ -145,6 +145,7 @@ def nyquist_plot(
     ms: float | None | bool = None,
     ax: Any = None,
     labels: Sequence[str] | None = None,
+    zoom: float | bool | None = None,
 ) -> tuple[Figure, Axes]:
     """Nyquist curve of the loop gain ``L(j omega)`` with the ``Ms`` circle (seed 001 Fig. 7).
 
@@ -160,16 +161,34 @@ def nyquist_plot(
         sensitivity circle (tangent to its curve); False draws no circle.
     ax : matplotlib Axes, optional
     labels : sequence of str, optional
+    zoom : float, bool or None
+        Half-width of the square window about the critical point ``-1`` (the axes
+        limits).  None (default): :data:`NYQUIST_ZOOM` when a curve leaves a box
+        twice that size (an integrator or a resonance sends ``|L|`` to thousands,
+        and autoscaling would shrink the circle to a dot), else the curves' own
+        extent; False: autoscale.  A text in the corner says how far the curve goes.
 
     Returns
     -------
     fig, ax
+
+    Examples
+    --------
+    >>> import posicast
+    >>> loop = posicast.control_action(G=([1], [1, 1, 0]), C=([10, 10], [0.01, 1]))   # |L| -> inf at 0
+    >>> fig, ax = nyquist_plot(loop, ms=2.0)
+    >>> ax.get_xlim(), ax.get_ylim()
+    ((-3.5, 1.5), (-2.5, 2.5))
     """
     loops = _loops_with_labels(loop, labels)
     if ms is not None and ms is not False:
         ms = v.positive(ms, "ms")
         if not 1.0 <= ms <= 1e12:
             raise ValueError(f"ms must be in [1, 1e12] (a peak sensitivity), got {ms:g}")
+    if zoom is not None and zoom is not False:
+        if zoom is True:
+            zoom = NYQUIST_ZOOM
+        zoom = v.real_in_range(zoom, "zoom", 0.0, 1e12, lo_open=True)
     v.axes(ax, "ax")
     w = None if omega is None else _omega(omega)
     import matplotlib.pyplot as plt
@@ -178,29 +197,50 @@ def nyquist_plot(
         fig, ax = plt.subplots(figsize=(6, 6))
     else:
         fig = ax.figure
-    theta = np.linspace(0.0, 2.0 * np.pi, 400)
+    reach = 0.0  # how far from -1 the curves go
     for i, lp in enumerate(loops):
         col = _COLORS[i % len(_COLORS)]
         data = lp.nyquist(w)
         L = data.response
+        finite = np.isfinite(L)
+        reach = max(reach, float(np.max(np.abs(L[finite] + 1.0))) if finite.any() else 0.0)
         lab = lp.label if labels is None else labels[i]
         ax.plot(L.real, L.imag, color=col, label=lab)
         ax.plot(L.real, -L.imag, color=col, ls="--", lw=0.8)
         if ms is None:
             m = lp.margins(data.omega)
-            r = 1.0 / m.ms
-            ax.plot(-1 + r * np.cos(theta), r * np.sin(theta), color=col, lw=0.8, ls=":",
-                    label=f"Ms = {m.ms:.3g}")
+            _ms_circle(ax, m.ms, col, ":", f"Ms = {m.ms:.3g}")
     if ms is not None and ms is not False:
-        r = 1.0 / ms
-        ax.plot(-1 + r * np.cos(theta), r * np.sin(theta), color="k", lw=1.0, label=f"Ms = {ms:g}")
+        _ms_circle(ax, ms, "k", "-", f"Ms = {ms:g}")
     ax.plot([-1.0], [0.0], "k+", ms=10)
     ax.set_xlabel("Re L(j$\\omega$)")
     ax.set_ylabel("Im L(j$\\omega$)")
-    ax.set_aspect("equal", adjustable="datalim")
+    half = zoom if zoom is not None else (NYQUIST_ZOOM if reach > 2.0 * NYQUIST_ZOOM else None)
+    if half is not None and half is not False:
+        ax.set_xlim(-1.0 - half, -1.0 + half)
+        ax.set_ylim(-half, half)
+        ax.set_aspect("equal", adjustable="box")
+        if reach > half:
+            ax.text(0.02, 0.02, f"zoomed on -1; the curve reaches |1 + L| = {reach:.3g}", transform=ax.transAxes,
+                    fontsize=7, color="0.3")
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper right")
     return fig, ax
+
+
+#: Default half-width of the Nyquist plot's window about -1 when the curve goes far (see :func:`nyquist_plot`).
+NYQUIST_ZOOM = 2.5
+
+
+def _ms_circle(ax: Any, ms: float, color: str, ls: str, label: str) -> None:
+    """The circle of centre -1 and radius 1/ms, labelled in the legend and beside its top."""
+    theta = np.linspace(0.0, 2.0 * np.pi, 400)
+    r = 1.0 / ms
+    ax.plot(-1 + r * np.cos(theta), r * np.sin(theta), color=color, lw=1.0, ls=ls, label=label)
+    ax.annotate(label, xy=(-1.0, r), xytext=(0, 3), textcoords="offset points", ha="center", va="bottom",
+                fontsize=8, color=color)
 
 
 def spectrum_plot(

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import json
 from typing import Any, Callable
 
 import numpy as np
@@ -32,6 +33,7 @@ from .engine import sweep
 from .farm import calibration_table
 from .montecarlo import two_mass_grid, two_mass_monte_carlo
 from .plots import histogram, value_map
+from .result import SweepResult
 
 __all__ = ["run_sweep", "values_of"]
 
@@ -120,13 +122,9 @@ def run_sweep(args: argparse.Namespace, save_figure: Callable[[Any, str], None])
             result = sweep(_import(args.target), params, n=args.n, seed=args.seed, **opts)
         else:
             result = sweep(_import(args.target), grid, **opts)
-    print(result.summary())
-    if chart is not None:
-        bad = chart.disagreements()
-        print(f"D-decomposition check: {'agrees' if not bad else f'{len(bad)} disagreements'} to the grid "
-              f"resolution; stability boundary per delay error:")
-        for e in chart.result.space.axes[1]:
-            print(f"  delay_error {e:+.4g}: gain {', '.join(f'{k:.6g}' for k in chart.stability_edges(e)) or '-'}")
+    as_json = getattr(args, "json", False)
+    if not as_json:
+        _print_result(result, chart)
     if args.plot is not None:
         if chart is not None:
             fig, _ = chart.plot()
@@ -136,8 +134,48 @@ def run_sweep(args: argparse.Namespace, save_figure: Callable[[Any, str], None])
             value = getattr(args, "value", None) or next(iter(result.values), "")
             fig, _ = value_map(result, value)
         save_figure(fig, args.plot)
-        print(f"wrote {args.plot}")
     if args.csv is not None:
         result.to_csv(args.csv)
-        print(f"wrote {args.csv}")
+    if as_json:
+        print(json.dumps(sweep_json(result, chart), indent=2))
+    else:
+        for out in (args.plot, args.csv):
+            if out is not None:
+                print(f"wrote {out}")
     return 1 if np.any(result.status == "error") else 0
+
+
+def _print_result(result: SweepResult, chart: StabilityChart | None) -> None:
+    print(result.summary())
+    if chart is not None:
+        bad = chart.disagreements()
+        print(f"D-decomposition check: {'agrees' if not bad else f'{len(bad)} disagreements'} to the grid "
+              f"resolution; stability boundary per delay error:")
+        for e in chart.result.space.axes[1]:
+            print(f"  delay_error {e:+.4g}: gain {', '.join(f'{k:.6g}' for k in chart.stability_edges(e)) or '-'}")
+
+
+def _plain(x: Any) -> Any:
+    """A table cell as JSON: numbers (NaN and infinity as null), booleans, strings."""
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    return str(x)
+
+
+def sweep_json(result: SweepResult, chart: StabilityChart | None = None) -> dict[str, Any]:
+    """``posicast sweep --json``: the sweep's shape and status counts, its table (one list per column, one
+    entry per point, as :meth:`SweepResult.table`) and, for a chart, the D-decomposition check."""
+    counts = {s: int(np.count_nonzero(result.status == s)) for s in ("ok", "error", "missing")}
+    doc: dict[str, Any] = {"function": result.function, "kind": result.space.kind, "shape": list(result.shape),
+                           "parameters": list(result.space.names), "values": list(result.values),
+                           "counts": counts, "table": {k: [_plain(x) for x in col]
+                                                       for k, col in result.table().items()}}
+    if chart is not None:
+        doc["disagreements"] = [list(map(float, b)) for b in chart.disagreements()]
+        doc["stability_edges"] = {repr(float(e)): [float(k) for k in chart.stability_edges(e)]
+                                  for e in chart.result.space.axes[1]}
+    return doc

@@ -160,11 +160,13 @@ def regions_plot(items: Sequence[TuningResult], labels: Sequence[str] | None = N
 
 
 def tuning_nyquist_plot(items: TuningResult | Sequence[TuningResult], ax: Any = None,
-                        labels: Sequence[str] | None = None, omega: Any = None) -> tuple[Any, Any]:
+                        labels: Sequence[str] | None = None, omega: Any = None,
+                        zoom: float | bool | None = None) -> tuple[Any, Any]:
     """Nyquist curves of the chosen loops with the Ms circle (seed 001 Fig. 7).
 
     The circle drawn is the first design's ``Ms`` constraint; an active design's
-    curve touches it.
+    curve touches it.  ``zoom``: the window about ``-1``, see
+    :func:`posicast.loops.nyquist_plot` (by default zoomed when the curve goes far).
     """
     seq = [items] if isinstance(items, TuningResult) else v.sequence(items, "items", min_len=1)
     for it in seq:
@@ -181,4 +183,4 @@ def tuning_nyquist_plot(items: TuningResult | Sequence[TuningResult], ax: Any = 
     if omega is None:
         fd = seq[0].region.problem.fd
         omega = fd.omega[fd.omega > 0]
-    return nyquist_plot(loops, omega=omega, ms=ms if ms is not None else None, ax=ax, labels=labels)
+    return nyquist_plot(loops, omega=omega, ms=ms if ms is not None else None, ax=ax, labels=labels, zoom=zoom)

@@ -1,0 +1,144 @@
+"""``posicast simulate``: a loop's response to a reference step (or a reference read from a file), with
+optional disturbance steps, written as CSV (``--out``) and/or a figure (``--plot``).
+
+The loop is described by the options of :mod:`.systems` and needs a controller
+(:func:`posicast.simulate` runs loops).  Continuous mode by default; ``--sample-rate``
+runs the controller and the shaper sampled (seed 000 section VI).  The CSV has a
+header ``t,<signals>`` and one row per time step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import math
+from typing import Any
+
+import numpy as np
+
+from .. import _validate as v
+from ..identification import load_csv
+from ..simulation import simulate
+from ..simulation.response import SimulationResponse
+from .figures import pyplot, save_atomic, write_atomic
+from .progress import working
+from .systems import system_of
+
+__all__ = ["run"]
+
+_SIGNALS = ("w", "d", "di", "n", "e", "v", "u", "z", "y", "r", "m")
+#: At most this many time steps (a CSV row each).
+MAX_STEPS = 20_000_000
+
+
+def run(args: argparse.Namespace) -> int:
+    """Simulate, then write the CSV and the figure (only once everything succeeded) and print a summary."""
+    csv_path = None if args.out is None else v.path_for_output(args.out, "--out", (".csv",))
+    signals = _signals(args.signals)
+    t = _time(args)
+    system = system_of(args)
+    if system.loop is None:
+        raise ValueError("simulate runs a loop: give a controller (--kp/--ki/--kd or --controller-num)")
+    w = _reference(args, t)
+    d = _step(args.disturbance, t, "--disturbance")
+    di = _step(args.input_disturbance, t, "--input-disturbance")
+    with working(f"simulating {t.size} steps", args.quiet):
+        resp = simulate(system.loop, t, w=w, d=d, di=di, sample_rate=args.sample_rate,
+                        outputs=tuple(s for s in signals if s not in ("w", "d", "di", "n")))
+    kept = [s for s in signals if s in resp.signals]
+    fig = None
+    if args.plot:
+        pyplot()  # the Agg backend before the response draws
+        fig, axes = resp.plot(kept, label=system.description)
+    if csv_path is not None:  # everything computed: only now write
+        write_atomic(csv_path, args.out, "--out", lambda fh: fh.write(_csv(resp, kept)))
+    if fig is not None:
+        save_atomic(fig, args.plot, "--plot")
+    summary = _summary(resp, kept, None if args.input else args.step_time)
+    if args.json:
+        print(json.dumps({"system": system.description, "architecture": system.loop.architecture,
+                          "mode": resp.mode, "sample_rate": resp.sample_rate, "steps": int(resp.time.size),
+                          "dt": float(t[1] - t[0]), "t_end": float(t[-1]), "accuracy": _number(resp.accuracy),
+                          "diverged": resp.diverged, "diverged_signal": resp.diverged_signal,
+                          "signals": kept, "out": args.out, "plot": args.plot, **summary}, indent=2))
+        return 0
+    print(f"{system.description}: {resp.mode} simulation, {resp.time.size} steps of {t[1] - t[0]:.4g} s")
+    if resp.diverged is not None:
+        print(f"DIVERGED: |{resp.diverged_signal}| exceeded the limit at t = {resp.diverged:.4g} s")
+    for name, val in summary["final"].items():
+        print(f"  {name}: final {val:.6g}, peak |{name}| {summary['peak'][name]:.6g}")
+    if summary["overshoot_percent"] is not None:
+        print(f"  y: overshoot {summary['overshoot_percent']:.4g} %, settling (2 %) "
+              f"{summary['settling_time']:.4g} s")
+    for out in (args.out, args.plot):
+        if out:
+            print(f"wrote {out}")
+    return 0
+
+
+def _number(x: Any) -> float | None:
+    return float(x) if x is not None and math.isfinite(float(x)) else None
+
+
+def _signals(text: str) -> list[str]:
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names:
+        raise ValueError("--signals must name at least one signal")
+    for s in names:
+        v.choice(s, "--signals", _SIGNALS)
+    return list(dict.fromkeys(names))
+
+
+def _time(args: argparse.Namespace) -> np.ndarray:
+    t_end = v.positive(args.t_end, "--t-end")
+    if args.sample_rate is not None:
+        v.positive(args.sample_rate, "--sample-rate")
+    dt = args.dt if args.dt is not None else (1.0 / args.sample_rate if args.sample_rate else t_end / 5000.0)
+    dt = v.positive(dt, "--dt")
+    n = math.floor(t_end / dt + 1e-9) + 1
+    if n < 2:
+        raise ValueError(f"--dt must be shorter than --t-end, got dt = {dt:g} s, t-end = {t_end:g} s")
+    if n > MAX_STEPS:
+        raise ValueError(f"--t-end / --dt gives {n} steps, more than {MAX_STEPS}: use a larger --dt")
+    return np.arange(n) * dt
+
+
+def _reference(args: argparse.Namespace, t: np.ndarray) -> np.ndarray:
+    if args.input is None:
+        v.finite_real(args.step_time, "--step-time")
+        return v.finite_real(args.step, "--step") * (t >= args.step_time).astype(float)
+    ds = load_csv(args.input)
+    col = "w" if "w" in ds.columns else (next(iter(ds.columns)) if len(ds.columns) == 1 else None)
+    if col is None:
+        raise ValueError(f"--input: {args.input} must have a time column and a column 'w' (or one signal), "
+                         f"got columns {', '.join(ds.columns)}")
+    # the reference is held between the file's samples (zero-order hold), its last value after its end
+    idx = np.clip(np.searchsorted(ds.t, t, side="right") - 1, 0, ds.t.size - 1)
+    return np.where(t >= ds.t[0], np.asarray(ds.column(col), dtype=float)[idx], 0.0)
+
+
+def _step(spec: list[float] | None, t: np.ndarray, name: str) -> np.ndarray | None:
+    if spec is None:
+        return None
+    at, size = v.finite_real(spec[0], name), v.finite_real(spec[1], name)
+    return size * (t >= at).astype(float)
+
+
+def _csv(resp: SimulationResponse, kept: list[str]) -> bytes:
+    cols = [resp.time] + [resp.signals[s] for s in kept]
+    buf = io.StringIO()
+    buf.write(",".join(["t"] + kept) + "\n")
+    np.savetxt(buf, np.column_stack(cols), delimiter=",", fmt="%.17g")
+    return buf.getvalue().encode()
+
+
+def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None) -> dict[str, Any]:
+    """Final and peak values; for a step reference, the overshoot and 2 % settling time of y after it."""
+    final = {s: float(resp.signals[s][-1]) for s in kept} if resp.time.size else {}
+    peak = {s: float(np.max(np.abs(resp.signals[s]))) for s in kept} if resp.time.size else {}
+    over = settle = None
+    if "y" in resp.signals and resp.diverged is None and step_time is not None and step_time < resp.time[-1]:
+        start = max(step_time, float(resp.time[0]))
+        over, settle = resp.overshoot("y", start=start), _number(resp.settling_time("y", start=start))
+    return {"final": final, "peak": peak, "overshoot_percent": over, "settling_time": settle}
