@@ -146,7 +146,7 @@ def identification_section(report: Report, trials: int = 30, acceptance_trials: 
                          + html.escape(rec.table() + "\n" + "\n".join(rec.reasoning) + "\n\n"
                                        + "\n".join(rec.config)) + "</pre>")
 
-    report.figure(calibration_plot(cal), "identify_klipper", "Left: the log's spectrum with the fitted model, the "
+    report.figure(calibration_plot(cal)[0], "identify_klipper", "Left: the log's spectrum with the fitted model, the "
                   "excitation's shape and the modes' 95 % intervals. Right: vibration left by each firmware's "
                   "recommended setting (solid) and by a Klipper-style pick on the same types (dashed), over the "
                   "spectrum the firmware scores on (grey).")

@@ -248,10 +248,10 @@ class SensitivityCurve:
     reference: str
 
     def plot(self, ax: Any = None, **kwargs: Any) -> Any:
-        """Draw on ``ax`` (created if None); returns the axes."""
+        """Draw on ``ax`` (created if None); returns ``(fig, ax)`` (:func:`~posicast.analysis.sensitivity_plot`)."""
         from .plots import sensitivity_plot  # cycle: plots imports this module
 
-        return sensitivity_plot([self], ax=ax, **kwargs)[1]
+        return sensitivity_plot([self], ax=ax, **kwargs)
 
 
 @v.renamed_keywords(shaper="S")

@@ -72,7 +72,7 @@ def _calibrate_cmd(args: argparse.Namespace) -> int:
                     band=None if args.band is None else tuple(args.band))
     if args.plot:  # everything computed: only now write
         pyplot()  # the Agg backend before the figure is drawn
-        save_atomic(calibration_plot(cal), args.plot)
+        save_atomic(calibration_plot(cal)[0], args.plot)
     if args.json:
         print(json.dumps(cal.to_dict(), indent=2))
     else:

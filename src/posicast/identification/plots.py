@@ -45,8 +45,8 @@ def fit_plot(ident: Identification, t: Any = None, y: Any = None, ax: Axes | Non
     return fig, ax
 
 
-def calibration_plot(cal: Calibration) -> Figure:
-    """The calibration figure; returns the figure.
+def calibration_plot(cal: Calibration) -> tuple[Figure, tuple[Axes, Axes]]:
+    """The calibration figure; returns ``(fig, (ax_spectra, ax_vibration))`` as the other plots do.
 
     Left, per file: the measured PSD, the fitted model and its background (excitation
     through a flat path, sweep lines, sensor floor), the excitation shape, each mode's
@@ -60,7 +60,7 @@ def calibration_plot(cal: Calibration) -> Figure:
     _spectra_panel(a1, cal, colours)
     _vibration_panel(a2, cal, colours)
     fig.tight_layout()
-    return fig
+    return fig, (a1, a2)
 
 
 def _spectra_panel(a1: Axes, cal: Calibration, colours: list[str]) -> None:

@@ -127,10 +127,21 @@ class SimulationResponse:
         return float(self.time[ch[0] + 1]) if ch.size else float(self.time[0])
 
     def plot(self, signals: Sequence[str] = ("w", "z", "y", "u"), axes: Any = None, label: str | None = None) -> Any:
-        """Plot ``signals`` on stacked axes; returns the figure and the axes.
+        """Plot ``signals`` on stacked axes; returns ``(fig, axes)``.
 
         ``signals`` are names of :attr:`signals` (those absent from this loop are
         skipped, at least one must be present); ``axes`` one Axes per drawn signal.
+        ``label`` names this response's curves in a legend on every axes (draw
+        several responses on the same ``axes`` to compare them).
+
+        Examples
+        --------
+        >>> import numpy as np, posicast as pc
+        >>> t = np.arange(0, 2, 0.01)
+        >>> r = pc.simulate(pc.feedforward(G=([1], [1, 1]), C=2.0), t, w=np.ones_like(t))
+        >>> fig, axes = r.plot(["y"], label="P = 2")
+        >>> [t.get_text() for t in axes[0].get_legend().get_texts()]
+        ['P = 2']
         """
         names_in = [signals] if isinstance(signals, str) else v.sequence(signals, "signals", min_len=1)
         for nm in names_in:
@@ -161,6 +172,8 @@ class SimulationResponse:
             ax.grid(True, alpha=0.3)
             if self.diverged is not None:
                 ax.axvline(self.diverged, color="r", ls=":", lw=1)
+            if label is not None:  # every labelled curve drawn on this axes so far
+                ax.legend(fontsize=8, loc="best")
         axes[-1].set_xlabel("time [s]")
         if self.diverged is not None:
             axes[0].set_title(f"diverged: |{self.diverged_signal}| at t = {self.diverged:.3g} s", fontsize=9)

@@ -85,4 +85,6 @@ def histogram(result: SweepResult, value: str, ax: Axes | None = None, bins: int
     ax.hist(data, bins=bins, **kwargs)
     ax.set_xlabel(value)
     ax.set_ylabel("points")
+    if kwargs.get("label") is not None:
+        ax.legend(fontsize=8)
     return fig, ax
