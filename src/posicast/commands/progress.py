@@ -30,8 +30,10 @@ DELAY = 1.0
 
 
 @contextmanager
-def working(what: str, quiet: bool = False, delay: float = DELAY) -> Iterator[None]:
-    """Show ``what`` with a running clock on stderr while the block runs (after ``delay`` seconds)."""
+def working(what: str, quiet: bool = False, delay: float | None = None) -> Iterator[None]:
+    """Show ``what`` with a running clock on stderr while the block runs (after ``delay`` seconds, default
+    :data:`DELAY`)."""
+    wait = DELAY if delay is None else delay
     if quiet:
         yield
         return
@@ -40,7 +42,7 @@ def working(what: str, quiet: bool = False, delay: float = DELAY) -> Iterator[No
     done = threading.Event()
 
     def tick() -> None:
-        if done.wait(delay):
+        if done.wait(wait):
             return
         bar = tqdm(desc=what, total=None, file=sys.stderr, leave=False, bar_format="{desc}: {elapsed}",
                    initial=0, mininterval=0.0)
@@ -59,13 +61,15 @@ def working(what: str, quiet: bool = False, delay: float = DELAY) -> Iterator[No
         thread.join()
 
 
-def steps(quiet: bool = False, delay: float = DELAY) -> Callable[[str], None]:
-    """A ``progress(message)`` callback printing ``[elapsed] message`` on stderr once ``delay`` has passed."""
+def steps(quiet: bool = False, delay: float | None = None) -> Callable[[str], None]:
+    """A ``progress(message)`` callback printing ``[elapsed] message`` on stderr once ``delay`` (default
+    :data:`DELAY`) has passed."""
     start = time.monotonic()
+    wait = DELAY if delay is None else delay
 
     def say(msg: str) -> None:
         elapsed = time.monotonic() - start
-        if not quiet and elapsed > delay:
+        if not quiet and elapsed >= wait:
             print(f"[{elapsed:5.1f} s] {msg}", file=sys.stderr, flush=True)
 
     return say

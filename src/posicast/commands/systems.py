@@ -66,6 +66,13 @@ def quasi_polynomial(text: str, name: str) -> QuasiPolynomial:
     return total
 
 
+def _transfer(num: QuasiPolynomial, den: QuasiPolynomial, name: str) -> TransferFunction:
+    try:
+        return TransferFunction(num, den)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: {exc}") from None
+
+
 def _controller(args: argparse.Namespace) -> TransferFunction | None:
     gains = {g: getattr(args, g) for g in ("kp", "ki", "kd")}
     given = {g: x for g, x in gains.items() if x is not None}
@@ -77,7 +84,7 @@ def _controller(args: argparse.Namespace) -> TransferFunction | None:
             raise ValueError("--controller-num is required with --controller-den")
         num = quasi_polynomial(args.controller_num, "--controller-num")
         den = quasi_polynomial(args.controller_den or "1", "--controller-den")
-        return TransferFunction(num, den)
+        return _transfer(num, den, "--controller-num/--controller-den")
     if not given:
         if args.derivative_filter is not None:
             raise ValueError("--derivative-filter needs --kd")
@@ -116,7 +123,7 @@ def system_of(args: argparse.Namespace) -> System:
     else:
         if args.den is None:
             raise ValueError("--den is required with --num")
-        G = TransferFunction(quasi_polynomial(args.num, "--num"), quasi_polynomial(args.den, "--den"))
+        G = _transfer(quasi_polynomial(args.num, "--num"), quasi_polynomial(args.den, "--den"), "--num/--den")
         what = "G = (" + args.num + ") / (" + args.den + ")"
     if args.delay:
         G = G * delay(args.delay)

@@ -1,0 +1,114 @@
+"""``posicast stability`` and ``posicast simulate`` (issue #20): hostile inputs are one line and exit 2 with
+no file written; every figure option writes exactly the file named; progress goes to stderr only."""
+
+import json
+import time
+
+import pytest
+
+from posicast.cli import main
+from posicast.commands.progress import steps, working
+
+LOOP = ["--num", "1", "--den", "1 1 0", "--kp", "10", "--kd", "10", "--derivative-filter", "0.01",
+        "--shaper", "zv", "--omega", "10", "--zeta", "0.03"]
+
+
+@pytest.mark.parametrize("argv, word", [
+    (["stability", "--num", "1 x", "--den", "1 1"], "--num must be numbers"),
+    (["stability", "--num", "1", "--den", "1; 1 @-1"], "--den delay must be"),
+    (["stability", "--num", "1", "--den", "1; 1 @nan"], "--den delay must be"),
+    (["stability", "--num", "1", "--den", "1;"], "a term without coefficients"),
+    (["stability", "--num", "1", "--den", "inf 1"], "--den"),
+    (["stability", "--num", "1"], "--den is required"),
+    (["stability", "--case", "nowhere"], "--case must be one of"),
+    (["stability", "--case", "gantry_crane", "--den", "1 1"], "--den goes with --num"),
+    (["stability", "--num", "1", "--den", "1 1", "--roots", "0"], "--roots"),
+    (["stability", "--num", "1", "--den", "1 1", "--shaper", "zv"], "--omega and --zeta"),
+    (["stability", "--num", "1", "--den", "1 1", "--omega", "3"], "--omega and --zeta go together"),
+    (["stability", "--num", "1", "--den", "1 1", "--architecture", "feedforward"], "needs a controller"),
+    (["stability", "--num", "1", "--den", "1 1", "--controller-den", "1 2"], "--controller-num is required"),
+    (["stability", "--num", "1", "--den", "1 1", "--kp", "1", "--controller-num", "1"], "not both"),
+    (["stability", "--num", "1", "--den", "1 1", "--kp", "nan"], "--kp"),
+    (["stability", "--num", "1", "--den", "1 1", "--kp", "1", "--derivative-filter", "0.1"], "needs --kd"),
+    (["stability", "--num", "1", "--den", "1 1", "--delay", "-1"], "--delay"),
+    (["stability", "--num", "1", "--den", "0"], "--num/--den: den must not be identically zero"),
+    (["stability", *LOOP[:4], "--controller-num", "1", "--controller-den", "0 0"], "--controller-num/--controller-den"),
+    (["simulate", *LOOP, "--t-end", "-1"], "--t-end"),
+    (["simulate", *LOOP, "--dt", "0"], "--dt"),
+    (["simulate", *LOOP, "--t-end", "1", "--dt", "2"], "--dt must be shorter"),
+    (["simulate", *LOOP, "--t-end", "1e9", "--dt", "1e-3"], "steps, more than"),
+    (["simulate", *LOOP, "--signals", "y,q"], "--signals"),
+    (["simulate", *LOOP, "--signals", ","], "--signals must name"),
+    (["simulate", "--num", "1", "--den", "1 1"], "simulate runs a loop"),
+    (["simulate", *LOOP, "--input", "no_such_file.csv"], "no_such_file.csv"),
+    (["simulate", *LOOP, "--disturbance", "1", "nan"], "--disturbance"),
+    (["simulate", *LOOP, "--sample-rate", "-5"], "--sample-rate"),
+    (["simulate", *LOOP, "--out", "run.png"], "--out"),
+])
+def test_hostile_inputs_are_one_line_exit_2_nothing_written(argv, word, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([*argv, "--plot", "f.png"]) == 2
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith("posicast: error:"), err
+    assert word in err, err
+    assert out == "" and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("argv", [
+    ["stability", *LOOP, "--plot", "spec.svg"],
+    ["stability", "--num", "1", "--den", "1 0; 1 @1", "--plot", "spec.pdf"],
+    ["simulate", *LOOP, "--t-end", "2", "--plot", "resp.pdf", "--out", "resp.csv"],
+    ["tune", "--num", "1", "--den", "1 2 1", "--controller", "pi", "--ms", "1.4", "--plot", "region.jpg",
+     "--nyquist", "nyq.svg"],
+    ["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", "sens.tiff"],
+])
+def test_each_figure_option_writes_exactly_the_file_named(argv, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 0
+    named = {argv[i + 1] for i, a in enumerate(argv) if a in ("--plot", "--nyquist", "--out")}
+    assert {p.name for p in tmp_path.iterdir()} == named
+    magic = {".svg": b"<?xml", ".pdf": b"%PDF", ".jpg": b"\xff\xd8", ".tiff": b"II*\x00", ".csv": b"t,"}
+    for name in named:
+        assert (tmp_path / name).read_bytes().startswith(magic[name[name.rindex("."):]])
+    out = capsys.readouterr().out
+    assert all(f"wrote {name}" in out for name in named)
+
+
+def test_simulate_reads_a_reference_file(tmp_path, capsys):
+    ref = tmp_path / "ref.csv"
+    ref.write_text("t,w\n" + "".join(f"{k * 0.25},{min(k, 4) * 0.25}\n" for k in range(20)))
+    out = tmp_path / "r.csv"
+    assert main(["simulate", *LOOP, "--t-end", "3", "--dt", "0.01", "--input", str(ref), "--out", str(out),
+                 "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    w = {round(float(r[0]), 6): float(r[1]) for r in rows}
+    assert w[0.0] == 0.0 and w[0.24] == 0.0 and w[0.25] == 0.25 and w[0.99] == 0.75 and w[1.2] == 1.0  # held
+    assert w[3.0] == 1.0
+    assert data["overshoot_percent"] is None  # no step: no step metrics
+
+
+def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):
+    with working("long work", delay=0.0):
+        time.sleep(0.8)
+    out, err = capsys.readouterr()
+    assert out == "" and "long work" in err
+    with working("long work", quiet=True, delay=0.0):
+        time.sleep(0.3)
+    with working("quick work"):  # under the 1 s delay: nothing
+        pass
+    say = steps(delay=0.0)
+    say("step one")
+    steps(quiet=True, delay=0.0)("hidden")
+    out, err = capsys.readouterr()
+    assert out == "" and "quick work" not in err and "hidden" not in err and "] step one" in err
+
+
+def test_json_stays_parseable_with_progress(capsys, monkeypatch):
+    """Progress shown from the start (delay 0): stdout is still exactly one JSON document."""
+    import posicast.commands.progress as progress
+
+    monkeypatch.setattr(progress, "DELAY", 0.0)
+    assert main(["stability", *LOOP, "--architecture", "inverse_shaper", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["stable"] is False and "certifying" in err
