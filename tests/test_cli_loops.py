@@ -3,12 +3,14 @@ no file written; every figure option writes exactly the file named; progress goe
 
 import json
 import time
+from pathlib import Path
 
 import pytest
 
 from posicast.cli import main
 from posicast.commands.progress import steps, working
 
+REAL_PSD = Path(__file__).parent / "data" / "real" / "bassco_ender3_resonances_x_20210821.csv"
 LOOP = ["--num", "1", "--den", "1 1 0", "--kp", "10", "--kd", "10", "--derivative-filter", "0.01",
         "--shaper", "zv", "--omega", "10", "--zeta", "0.03"]
 
@@ -61,13 +63,15 @@ def test_hostile_inputs_are_one_line_exit_2_nothing_written(argv, word, tmp_path
     ["tune", "--num", "1", "--den", "1 2 1", "--controller", "pi", "--ms", "1.4", "--plot", "region.jpg",
      "--nyquist", "nyq.svg"],
     ["sensitivity", "zv", "--omega", "5", "--zeta", "0.05", "--out", "sens.tiff"],
+    ["calibrate", str(REAL_PSD), "--plot", "cal.png"],
 ])
 def test_each_figure_option_writes_exactly_the_file_named(argv, tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(argv) == 0
     named = {argv[i + 1] for i, a in enumerate(argv) if a in ("--plot", "--nyquist", "--out")}
     assert {p.name for p in tmp_path.iterdir()} == named
-    magic = {".svg": b"<?xml", ".pdf": b"%PDF", ".jpg": b"\xff\xd8", ".tiff": b"II*\x00", ".csv": b"t,"}
+    magic = {".svg": b"<?xml", ".pdf": b"%PDF", ".jpg": b"\xff\xd8", ".tiff": b"II*\x00", ".csv": b"t,",
+             ".png": b"\x89PNG"}
     for name in named:
         assert (tmp_path / name).read_bytes().startswith(magic[name[name.rindex("."):]])
     out = capsys.readouterr().out

@@ -177,3 +177,16 @@ def test_nyquist_plot_is_zoomed_on_the_critical_point_with_the_ms_circle():
     with pytest.raises(ValueError, match="zoom"):
         nyquist_plot(loop, zoom=-1.0)
     plt.close("all")
+
+
+def test_readme_plots_example_runs():
+    import doctest
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    block = next(b for b in re.findall(r"```python\n(.*?)```", text, re.S) if "unwrapped_phase" in b)
+    test = doctest.DocTestParser().get_doctest(block, {}, "README plots", "README.md", 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 4
