@@ -116,3 +116,12 @@ def test_json_stays_parseable_with_progress(capsys, monkeypatch):
     assert main(["stability", *LOOP, "--architecture", "inverse_shaper", "--json"]) == 0
     out, err = capsys.readouterr()
     assert json.loads(out)["stable"] is False and "certifying" in err
+
+
+def test_tune_without_a_controller_says_why_no_figure_is_written(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["tune", "--num", "1", "--den", "1 1 0", "--ms", "0.9", "--nyquist", "n.png", "--json"]) == 1
+    out, err = capsys.readouterr()
+    assert json.loads(out)["gains"] is None
+    assert err == "posicast: warning: --nyquist n.png not written: no controller to draw\n"
+    assert list(tmp_path.iterdir()) == []

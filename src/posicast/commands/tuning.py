@@ -115,6 +115,10 @@ def _tune_figures(args: argparse.Namespace, r: TuningResult) -> list[tuple[Figur
             figures.append((r.plot()[0], args.plot, "--plot"))
         if args.nyquist and r.loop is not None:
             figures.append((r.nyquist_plot()[0], args.nyquist, "--nyquist"))
+    written = {opt for _, _, opt in figures}
+    for opt, out in (("--plot", args.plot), ("--nyquist", args.nyquist)):
+        if out and opt not in written:  # said, not silently skipped
+            print(f"posicast: warning: {opt} {out} not written: no controller to draw", file=sys.stderr)
     return figures
 
 

@@ -226,8 +226,8 @@ def nyquist_plot(
     >>> import posicast
     >>> loop = posicast.control_action(G=([1], [1, 1, 0]), C=([10, 10], [0.01, 1]))   # |L| -> inf at 0
     >>> fig, ax = nyquist_plot(loop, ms=2.0)
-    >>> ax.get_xlim(), ax.get_ylim()
-    ((-3.5, 1.5), (-2.5, 2.5))
+    >>> [float(x) for x in ax.get_xlim() + ax.get_ylim()]       # zoomed on -1
+    [-3.5, 1.5, -2.5, 2.5]
     """
     loops = _loops_with_labels(loop, labels)
     if ms is not None and ms is not False:
