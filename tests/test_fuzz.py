@@ -1363,6 +1363,22 @@ def cli_cases(d: Path) -> dict[str, list[list[str]]]:
     cases += [cal + [f"--plot={p}"] for p in ("fig", str(d / "cli"), str(d / "missing" / "f.png"), "cal.png")]
     cases += [["calibrate", p] for p in (str(d / "missing.csv"), str(d / "empty.csv"), str(d / "garbage.csv"))]
     out["calibrate"] = cases
+
+    loop = ["--num=1", "--den=1 1 0", "--kp=10", "--kd=10", "--derivative-filter=0.01"]
+    cases = [["stability", f"--num={v}", "--den=1 1"] for v in NUM_TEXT[:12]]
+    cases += [["stability", "--num=1", f"--den={v}"] for v in NUM_TEXT[:12] + ["1; 1 @", "1 @1 @2", "; ;", "@"]]
+    cases += [["stability", *loop, f"--kp={v}"] for v in NUM_TEXT[:8]]
+    cases += [["stability", *loop, f"--plot={p}"] for p in ("fig", str(d / "cli"), "s.png")]
+    cases += [["stability", *loop, f"--roots={v}"] for v in INT_TEXT[:6]]
+    out["stability"] = cases
+    sim = ["simulate", *loop, "--t-end=1"]
+    cases = [sim + [f"--dt={v}"] for v in NUM_TEXT[:10]]
+    cases += [sim + [f"--step-time={v}"] for v in NUM_TEXT[:6]]
+    cases += [sim + [f"--out={p}"] for p in ("run", "run.png", str(d / "cli"), "run.csv")]
+    cases += [sim + [f"--input={p}"] for p in (str(d / "missing.csv"), str(d / "empty.csv"), str(d / "garbage.csv"),
+                                                str(d / "nan.csv"), str(d / "data.csv"))]
+    cases += [sim + [f"--signals={v}"] for v in WORD_TEXT[:4]]
+    out["simulate"] = cases
     return out
 
 
@@ -1385,14 +1401,15 @@ def _cli_check(argv: list[str], rc: Any, out: str, err: str, before: set[str], a
         if err.count("\n") != 1 or not err.startswith("posicast: ") or out.strip() or after - before:
             return f"exit 1 (no resonance) but stderr {short(err, 120)!r}, stdout {short(out, 60)!r}"
         return None
-    progress = [ln for ln in err.splitlines() if re.match(r"\[\s*[0-9.]+ s\] ", ln)]  # calibrate's progress lines
+    # progress lines (commands/progress.py) and the CLI's one-line warnings
+    progress = [ln for ln in err.splitlines() if re.match(r"\[\s*[0-9.]+ s\] |posicast: warning: ", ln)]
     if len(progress) != len(err.splitlines()):
         return f"exit {rc} with stderr {short(err, 120)!r}"
     if re.search(r"(?<![A-Za-z])nan(?![A-Za-z])", out, flags=re.I):
         return f"exit {rc} but the output shows NaN: {short(out, 120)!r}"
     wanted = []
     for a in argv:
-        for opt in ("--out=", "--plot=", "--nyquist="):
+        for opt in ("--out=", "--plot=", "--nyquist="):  # (simulate's --out is a CSV table)
             if a.startswith(opt):
                 wanted.append(a[len(opt):])
     expected = set()
@@ -1414,7 +1431,7 @@ def _cli_check(argv: list[str], rc: Any, out: str, err: str, before: set[str], a
     return None
 
 
-CLI_SUBCOMMANDS = ("design", "sensitivity", "kinds", "tune", "identify", "calibrate")
+CLI_SUBCOMMANDS = ("design", "sensitivity", "kinds", "tune", "identify", "calibrate", "stability", "simulate")
 
 
 def _cli_owner(argv: list[str], exc: BaseException | None, err: str) -> str:
@@ -1457,7 +1474,7 @@ def test_cli_hostile_arguments(sub: str, data_dir: Path, tmp_path: Path, monkeyp
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                slow = argv[0] in ("tune", "calibrate", "identify")
+                slow = argv[0] in ("tune", "calibrate", "identify", "stability", "simulate")
                 with call_limits(0.5 if hangs[0] >= 2 else 6.0 if slow else CALL_SECONDS):
                     rc = cli_main(list(argv))
         except CallTimeout as e:
@@ -1502,10 +1519,12 @@ def test_cli_hostile_arguments(sub: str, data_dir: Path, tmp_path: Path, monkeyp
         "tune": (["tune", "--num=1", "--den=1 1 0"], "--ms"),
         "identify": (["identify", str(d / "data.csv"), "--input=u", "--output=y"], "--modes"),
         "calibrate": (["calibrate", str(d / "data.csv"), "--input=u", "--output=y"], "--vtol"),
+        "stability": (["stability", "--num=1", "--den=1 1 0", "--kp=1"], "--kd"),
+        "simulate": (["simulate", "--num=1", "--den=1 1 0", "--kp=1", "--t-end=1"], "--t-end"),
     }
     base, opt = templates[sub]
     if opt is not None:
-        n_ex = 8 if sub in ("tune", "calibrate", "identify") else 30
+        n_ex = 8 if sub in ("tune", "calibrate", "identify", "stability", "simulate") else 30
 
         @settings(max_examples=n_ex, deadline=None, database=None, derandomize=True, phases=[Phase.generate],
                   suppress_health_check=list(HealthCheck))

@@ -1,18 +1,19 @@
 """Progress of long work on stderr, shared by the subcommands (issue #20).
 
-stdout carries the result (text or ``--json``); progress goes to stderr only, and
-``--quiet`` silences it.  Two forms, both silent during the first second so that
-quick runs print nothing:
+stdout carries the result (text or ``--json``); progress goes to stderr only, one line
+at a time, each ``[elapsed s] message`` (the form ``calibrate`` has always printed, easy to
+read in a log or a CI job), and ``--quiet`` silences it.  Quick runs print nothing: the
+first line comes after :data:`DELAY` seconds.
 
-* :func:`working` wraps one long library call that reports nothing itself (a tuning,
-  a QFT design, a certified spectrum, a simulation): a tqdm bar with the elapsed time,
-  refreshed by a background thread, closed when the call returns;
+* :func:`working` wraps one long library call that reports nothing itself (a tuning, a
+  QFT design, a certified spectrum, a simulation): a background thread prints that the
+  work goes on after 1, 2, 4, 8, ... seconds, and how long it took once it is done (if it
+  printed anything);
 * :func:`steps` is a callback for library code that reports its steps as lines of text
-  (``calibrate(progress=...)``): each line after the first second is shown with the
-  elapsed time.
+  (``calibrate(progress=...)``): each line after the first second is shown.
 
 The library's loops are not touched: the callback is called at a coarse level (a file,
-a firmware), and the bar's thread only reads the clock.
+a firmware), and the thread only reads the clock.
 """
 
 from __future__ import annotations
@@ -29,28 +30,28 @@ __all__ = ["working", "steps", "DELAY"]
 DELAY = 1.0
 
 
+def _line(start: float, msg: str) -> None:
+    print(f"[{time.monotonic() - start:5.1f} s] {msg}", file=sys.stderr, flush=True)
+
+
 @contextmanager
 def working(what: str, quiet: bool = False, delay: float | None = None) -> Iterator[None]:
-    """Show ``what`` with a running clock on stderr while the block runs (after ``delay`` seconds, default
-    :data:`DELAY`)."""
+    """Say on stderr that ``what`` goes on, after ``delay`` (default :data:`DELAY`) seconds and then at
+    doubling intervals, while the block runs; and when it ends, if anything was said."""
     wait = DELAY if delay is None else delay
     if quiet:
         yield
         return
-    from tqdm import tqdm  # a core dependency; imported only by subcommands that may run long
-
+    start = time.monotonic()
     done = threading.Event()
+    said = threading.Event()
 
     def tick() -> None:
-        if done.wait(wait):
-            return
-        bar = tqdm(desc=what, total=None, file=sys.stderr, leave=False, bar_format="{desc}: {elapsed}",
-                   initial=0, mininterval=0.0)
-        try:
-            while not done.wait(0.5):
-                bar.refresh()
-        finally:
-            bar.close()
+        gap = wait
+        while not done.wait(max(0.0, start + gap - time.monotonic())):
+            _line(start, f"{what} ...")
+            said.set()
+            gap = 2.0 * max(gap, 0.5)
 
     thread = threading.Thread(target=tick, name="posicast-progress", daemon=True)
     thread.start()
@@ -59,6 +60,8 @@ def working(what: str, quiet: bool = False, delay: float | None = None) -> Itera
     finally:
         done.set()
         thread.join()
+        if said.is_set():
+            _line(start, f"{what}: done")
 
 
 def steps(quiet: bool = False, delay: float | None = None) -> Callable[[str], None]:
@@ -68,8 +71,7 @@ def steps(quiet: bool = False, delay: float | None = None) -> Callable[[str], No
     wait = DELAY if delay is None else delay
 
     def say(msg: str) -> None:
-        elapsed = time.monotonic() - start
-        if not quiet and elapsed >= wait:
-            print(f"[{elapsed:5.1f} s] {msg}", file=sys.stderr, flush=True)
+        if not quiet and time.monotonic() - start >= wait:
+            _line(start, msg)
 
     return say

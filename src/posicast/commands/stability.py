@@ -18,6 +18,7 @@ import numpy as np
 from .. import _validate as v
 from ..loops import spectrum_plot
 from ..spectra import rightmost, spectral_abscissa, stability
+from ..spectra.systems import characteristic_of
 from .figures import pyplot, save_atomic
 from .progress import working
 from .systems import System, system_of
@@ -35,6 +36,9 @@ def run(args: argparse.Namespace) -> int:
     with working("certifying the spectrum", args.quiet):
         st = stability(system.target)
         sa = spectral_abscissa(system.target)
+        ch = characteristic_of(system.target)
+        if ch.quasi.is_polynomial:  # no more roots than its degree: do not search for more
+            n = max(1, min(n, ch.quasi.degree - ch.removable.size))
         rm = rightmost(system.target, n)
         fig = _figure(system, rm, sa) if args.plot else None
     if fig is not None:  # everything computed: only now write

@@ -89,7 +89,9 @@ def _controller(args: argparse.Namespace) -> TransferFunction | None:
         if args.derivative_filter is not None:
             raise ValueError("--derivative-filter needs --kd")
         return None
-    kp, ki, kd = (v.real(gains[g] or 0.0, f"--{g}") for g in ("kp", "ki", "kd"))
+    # the tuner's gain bounds (tune --kp-range etc.): beyond them the certified root search spans decades it
+    # cannot resolve in reasonable time
+    kp, ki, kd = (v.real_in_range(gains[g] or 0.0, f"--{g}", -1e12, 1e12) for g in ("kp", "ki", "kd"))
     tf = 0.0 if args.derivative_filter is None else v.nonnegative(args.derivative_filter, "--derivative-filter",
                                                                     " [s]")
     if tf and not kd:
