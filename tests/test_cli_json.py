@@ -187,4 +187,5 @@ def test_simulate_json_and_csv(capsys, tmp_path):
     assert out.read_text().splitlines()[0] == "t,w,u,z,y"
     np.testing.assert_array_equal(table[:, 0], r.time)
     np.testing.assert_array_equal(table[:, 4], r.signals["y"])
-    assert data["overshoot_percent"] == r.overshoot("y", start=0.0)
+    assert data["step_response"]["y"]["overshoot_percent"] == r.overshoot("y", start=0.0)
+    assert data["step_response"]["z"]["settling_time"] == r.settling_time("z", start=0.0)

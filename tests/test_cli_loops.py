@@ -89,7 +89,7 @@ def test_simulate_reads_a_reference_file(tmp_path, capsys):
     w = {round(float(r[0]), 6): float(r[1]) for r in rows}
     assert w[0.0] == 0.0 and w[0.24] == 0.0 and w[0.25] == 0.25 and w[0.99] == 0.75 and w[1.2] == 1.0  # held
     assert w[3.0] == 1.0
-    assert data["overshoot_percent"] is None  # no step: no step metrics
+    assert data["step_response"] == {}  # no step: no step metrics
 
 
 def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):

@@ -50,12 +50,13 @@ def run(args: argparse.Namespace) -> int:
     fig = None
     if args.plot:
         pyplot()  # the Agg backend before the response draws
-        fig, axes = resp.plot(kept, label=system.description)
+        fig, axes = resp.plot(kept)
+        axes[0].set_title(f"{system.description} ({resp.mode})", fontsize=9)
     if csv_path is not None:  # everything computed: only now write
         write_atomic(csv_path, args.out, "--out", lambda fh: fh.write(_csv(resp, kept)))
     if fig is not None:
         save_atomic(fig, args.plot, "--plot")
-    summary = _summary(resp, kept, None if args.input else args.step_time)
+    summary = _summary(resp, kept, None if args.input else args.step_time, args.step)
     if args.json:
         print(json.dumps({"system": system.description, "architecture": system.loop.architecture,
                           "mode": resp.mode, "sample_rate": resp.sample_rate, "steps": int(resp.time.size),
@@ -68,9 +69,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"DIVERGED: |{resp.diverged_signal}| exceeded the limit at t = {resp.diverged:.4g} s")
     for name, val in summary["final"].items():
         print(f"  {name}: final {val:.6g}, peak |{name}| {summary['peak'][name]:.6g}")
-    if summary["overshoot_percent"] is not None:
-        print(f"  y: overshoot {summary['overshoot_percent']:.4g} %, settling (2 %) "
-              f"{summary['settling_time']:.4g} s")
+    for name, m in summary["step_response"].items():
+        settle = "not within the run" if m["settling_time"] is None else f"{m['settling_time']:.4g} s"
+        print(f"  {name} after the step: overshoot {m['overshoot_percent']:.4g} %, settling (2 %) {settle}")
     for out in (args.out, args.plot):
         if out:
             print(f"wrote {out}")
@@ -133,12 +134,20 @@ def _csv(resp: SimulationResponse, kept: list[str]) -> bytes:
     return buf.getvalue().encode()
 
 
-def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None) -> dict[str, Any]:
-    """Final and peak values; for a step reference, the overshoot and 2 % settling time of y after it."""
+def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None,
+             step: float = 1.0) -> dict[str, Any]:
+    """Final and peak values; for a step reference, the overshoot [%] and 2 % settling time [s] after it of
+    each of z and y that moved by at least 1 % of the step (a load's swing that returns to 0 has none)."""
     final = {s: float(resp.signals[s][-1]) for s in kept} if resp.time.size else {}
     peak = {s: float(np.max(np.abs(resp.signals[s]))) for s in kept} if resp.time.size else {}
-    over = settle = None
-    if "y" in resp.signals and resp.diverged is None and step_time is not None and step_time < resp.time[-1]:
+    metrics: dict[str, Any] = {}
+    if resp.diverged is None and step_time is not None and resp.time.size and step_time < resp.time[-1]:
         start = max(step_time, float(resp.time[0]))
-        over, settle = resp.overshoot("y", start=start), _number(resp.settling_time("y", start=start))
-    return {"final": final, "peak": peak, "overshoot_percent": over, "settling_time": settle}
+        for sig in ("z", "y"):
+            if sig not in resp.signals:
+                continue
+            x = resp.signals[sig][resp.time >= start]
+            if abs(x[-1] - x[0]) >= 0.01 * abs(step):
+                metrics[sig] = {"overshoot_percent": resp.overshoot(sig, start=start),
+                                "settling_time": _number(resp.settling_time(sig, start=start))}
+    return {"final": final, "peak": peak, "step_response": metrics}
