@@ -125,3 +125,22 @@ def test_tune_without_a_controller_says_why_no_figure_is_written(tmp_path, monke
     assert json.loads(out)["gains"] is None
     assert err == "posicast: warning: --nyquist n.png not written: no controller to draw\n"
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("band, word", [
+    ((60.0, 30.0), "band must satisfy 0 <= low < high"),
+    ((-5.0, 30.0), "band must satisfy 0 <= low < high"),
+    ((float("nan"), 30.0), "band"),
+    ((500.0, 600.0), "leaves less than 4 bins"),
+    ((30.0,), "band"),
+])
+def test_calibrate_band_is_checked(band, word, tmp_path, monkeypatch, capsys):
+    import posicast as pc
+
+    with pytest.raises((ValueError, TypeError), match=word):
+        pc.calibrate([str(REAL_PSD)], band=band)
+    monkeypatch.chdir(tmp_path)
+    if len(band) == 2:
+        assert main(["calibrate", str(REAL_PSD), "--band", *map(str, band), "--plot", "c.png"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and word.split()[0] in err and list(tmp_path.iterdir()) == []
