@@ -1,0 +1,250 @@
+""""Your plant → your loop": a plant, a shaper and a controller in; certified verdicts, tuned gains, responses out.
+
+:func:`analyse_plant` computes everything first (:class:`PlantAnalysis`); :func:`plant_part`
+adds it to a page, each result with the command and the Python code that gives it.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from ..loops import Loop
+from ..shapers import Shaper, design
+from ..simulation import SimulationResponse, simulate
+from ..spectra import Stability
+from ..tune import TuningResult, tune_pd, tune_pi
+from .page import Page
+from .plantfile import PlantSpec
+
+__all__ = ["PlantAnalysis", "LoopCase", "analyse_plant", "plant_part", "TITLE"]
+
+TITLE = "Your plant → your loop"
+#: Derivative filter of a tuned PD, in units of 1/omega of the mode (a proper controller to simulate).
+PD_FILTER = 0.05
+#: Time steps per period of the mode in the simulations.
+STEPS_PER_PERIOD = 50
+
+
+@dataclass(frozen=True)
+class LoopCase:
+    """One loop of the analysis: its controller, shaper (or none), certified verdict and step response."""
+
+    label: str
+    loop: Loop
+    stability: Stability
+    abscissa: float
+    response: SimulationResponse | None
+    shaped: bool
+
+
+@dataclass(frozen=True)
+class PlantAnalysis:
+    """Everything the part shows, computed before anything is written.
+
+    Attributes
+    ----------
+    spec : PlantSpec
+    S : Shaper
+    tuned, tuned_plain : TuningResult
+        The controller tuned with the shaper in its architecture, and without a shaper.
+    cases : tuple of LoopCase
+        Your controller without and with the shaper (when the file gives one), the tuned ones.
+    t : ndarray
+        Simulation time; the set-point step is at ``step_at``.
+    """
+
+    spec: PlantSpec
+    S: Shaper
+    tuned: TuningResult
+    tuned_plain: TuningResult
+    cases: tuple[LoopCase, ...]
+    t: np.ndarray
+    step_at: float
+
+    @property
+    def stable(self) -> bool:
+        """Every loop with the shaper certified stable."""
+        return all(c.stability.stable for c in self.cases if c.shaped)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready summary."""
+        def gains(r: TuningResult) -> dict[str, Any]:
+            return {"gains": None if r.gains is None else {k: float(x) for k, x in r.gains.items()},
+                    "ms": _num(r.ms), "stable": bool(r.stable), "reason": r.reason}
+
+        return {"name": self.spec.name, "mode": {"omega": self.spec.mode.omega, "freq_hz": self.spec.mode.freq_hz,
+                                                 "zeta": self.spec.mode.zeta},
+                "shaper": {"kind": self.spec.shaper, "duration": _num(self.S.duration)},
+                "architecture": self.spec.architecture,
+                "tuned": gains(self.tuned), "tuned_without_shaper": gains(self.tuned_plain),
+                "loops": [{"label": c.label, "stable": bool(c.stability.stable), "reason": c.stability.reason,
+                           "spectral_abscissa": _num(c.abscissa)} for c in self.cases]}
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _tune(spec: PlantSpec, S: Shaper | None) -> TuningResult:
+    kw: dict[str, Any] = {"F": spec.F} if spec.has_load else {}
+    if spec.controller == "pi":
+        return tune_pi(spec.G, S, spec.architecture, ms=spec.ms, **kw)
+    return tune_pd(spec.G, S, spec.architecture, ms=spec.ms, derivative_filter=PD_FILTER / spec.mode.omega, **kw)
+
+
+def _case(label: str, loop: Loop, shaped: bool, t: np.ndarray, w: np.ndarray) -> LoopCase:
+    st = loop.stability()
+    try:
+        absc = float(loop.spectral_abscissa())
+    except ValueError:
+        absc = math.nan
+    resp = simulate(loop, t, w=w) if st.stable else None
+    return LoopCase(label, loop, st, absc, resp, shaped)
+
+
+def analyse_plant(spec: PlantSpec) -> PlantAnalysis:
+    """Design the shaper, certify the loops, tune the controller with and without the shaper, simulate steps."""
+    S = design(spec.shaper, spec.mode, **dict(spec.shaper_params))
+    period = 2.0 * math.pi / spec.mode.omega
+    dt = period / STEPS_PER_PERIOD
+    t = np.arange(0.0, spec.horizon, dt)
+    step_at = min(period, 0.05 * spec.horizon)
+    w = (t >= step_at).astype(float)
+    F = spec.F if spec.has_load else None
+    tuned, plain = _tune(spec, S), _tune(spec, None)
+    cases = []
+    if spec.C is not None:
+        cases.append(_case("your controller, no shaper", Loop(spec.architecture, G=spec.G, C=spec.C, F=F), False, t, w))
+        cases.append(_case(f"your controller + {spec.shaper}", Loop(spec.architecture, G=spec.G, C=spec.C, F=F, S=S),
+                           True, t, w))
+    name = spec.controller.upper()
+    if plain.loop is not None:
+        cases.append(_case(f"tuned {name}, no shaper", plain.loop, False, t, w))
+    if tuned.loop is not None:
+        cases.append(_case(f"tuned {name} + {spec.shaper}", tuned.loop, True, t, w))
+    return PlantAnalysis(spec, S, tuned, plain, tuple(cases), t, step_at)
+
+
+def plant_file_text(spec: PlantSpec) -> str:
+    """The plant file as JSON text (what the page shows): one line per key."""
+    return "{\n" + ",\n".join(f"  {json.dumps(k)}: {json.dumps(val, ensure_ascii=False)}"
+                              for k, val in spec.source.items()) + "\n}"
+
+
+def plant_part(page: Page, a: PlantAnalysis, path: str, about: str = "") -> None:
+    """Add the part "Your plant → your loop" for the analysis ``a`` of the plant file ``path`` to ``page``."""
+    spec = a.spec
+    page.part(TITLE, (about + " " if about else "") +
+              f"<b>{html.escape(spec.name)}</b>: the shaper {html.escape(spec.shaper)} for the mode "
+              f"ω = {spec.mode.omega:.4g} rad/s ({spec.mode.freq_hz:.4g} Hz), ζ = {spec.mode.zeta:.4g} (from "
+              f"{html.escape(spec.mode_source)}), {1e3 * a.S.duration:.4g} ms long, in the "
+              f"{spec.architecture.replace('_', ' ')} architecture.")
+    page.code(plant_file_text(spec), f"The plant file <code>{html.escape(path)}</code> (format: README, "
+              "\"A report for your own data\"):", language="json")
+    page.code(f"posicast report {path} --out report", "The command that writes this part for your file:",
+              command="report")
+    _verdicts(page, a)
+    _tuning(page, a, path)
+    _responses(page, a)
+
+
+def _verdicts(page: Page, a: PlantAnalysis) -> None:
+    page.section("Certified stability")
+    rows = [[c.label, "stable" if c.stability.stable else ("marginal" if c.stability.marginal else "UNSTABLE"),
+             c.abscissa, c.stability.reason] for c in a.cases]
+    page.paragraph("Each verdict counts every closed-loop root with Re s ≥ 0 by the argument principle on a "
+                   "certified contour (delays exact, no Padé); the spectral abscissa is the decay rate of the "
+                   "slowest closed-loop mode (negative: stable).")
+    page.table(["loop", "verdict", "spectral abscissa [1/s]", "reason"], rows)
+    spec = a.spec
+    args = _loop_args(spec)
+    page.code("import posicast as pc\n"
+              f"S = pc.design({spec.shaper!r}, pc.Mode({spec.mode.omega:.6g}, {spec.mode.zeta:.6g})"
+              + "".join(f", {k}={val!r}" for k, val in spec.shaper_params.items()) + ")\n"
+              f"loop = pc.Loop({spec.architecture!r}, {args}, S=S)\n"
+              "st = loop.stability()\n"
+              "print(st.stable, st.reason, loop.spectral_abscissa())", "Python:", language="python")
+
+
+def _poly(spec: PlantSpec, key: str) -> str:
+    """Python for the block ``key`` of the plant file."""
+    b = spec.source.get(key, {})
+    if b.get("delay"):
+        return f"pc.TransferFunction.from_poly({b.get('num')!r}, {b.get('den')!r}, {b['delay']!r})"
+    return f"pc.as_transfer(({b.get('num')!r}, {b.get('den')!r}))"
+
+
+def _loop_args(spec: PlantSpec) -> str:
+    out = f"G={_poly(spec, 'plant')}, C={_poly(spec, 'controller') if spec.C is not None else 'C'}"
+    return out + (f", F={_poly(spec, 'load')}" if spec.has_load else "")
+
+
+def _tuning(page: Page, a: PlantAnalysis, path: str) -> None:
+    spec = a.spec
+    name = spec.controller.upper()
+    page.section(f"Tuned {name}")
+    page.paragraph(f"The robust {name} of seed 001's method: the H∞ regions |S| < {spec.ms:g} in the gain plane, "
+                   "intersected with the certified stability region, then the largest "
+                   + ("integral gain" if spec.controller == "pi" else "proportional gain")
+                   + (f" (derivative filter {PD_FILTER:g}/ω)" if spec.controller == "pd" else "")
+                   + "; with the shaper in the loop and without it.")
+    rows = []
+    for label, r in ((f"with {spec.shaper}", a.tuned), ("without shaper", a.tuned_plain)):
+        g = r.gains or {}
+        rows.append([label, g.get("kp", math.nan), g.get("ki" if spec.controller == "pi" else "kd", math.nan),
+                     r.ms, "yes" if r.stable else "no", r.reason])
+    page.table(["shaper", "Kp", "Ki" if spec.controller == "pi" else "Kd", "achieved Ms", "certified stable",
+                "why this point"], rows)
+    fn = "tune_pi" if spec.controller == "pi" else "tune_pd"
+    extra = "" if spec.controller == "pi" else f", derivative_filter={PD_FILTER / spec.mode.omega:.4g}"
+    load = ", F=F" if spec.has_load else ""
+    page.code(f"G = {_poly(spec, 'plant')}\n" + (f"F = {_poly(spec, 'load')}\n" if spec.has_load else "")
+              + f"r = pc.{fn}(G, S, {spec.architecture!r}, ms={spec.ms:g}{extra}{load})\n"
+              "print(r.summary())\nr.plot(); r.nyquist_plot()",
+              "Python (<code>posicast tune --num ... --den ... --controller "
+              f"{spec.controller} --shaper {html.escape(spec.shaper)} --ms {spec.ms:g}</code> on the command line):",
+              language="python")
+
+
+def _responses(page: Page, a: PlantAnalysis) -> None:
+    spec = a.spec
+    page.section("Step response with and without the shaper")
+    shown = [c for c in a.cases if c.response is not None]
+    fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2))
+    for c in shown:
+        r = c.response
+        assert r is not None
+        ls = "-" if c.shaped else "--"
+        axes[0].plot(r.time, r.signals["y"], ls, lw=1.2, label=c.label)
+        axes[1].plot(r.time, r.signals["u"], ls, lw=1.0, label=c.label)
+    axes[0].plot(a.t, (a.t >= a.step_at).astype(float), color="0.6", lw=0.8, label="set-point")
+    axes[0].set_ylabel("y (load)" if spec.has_load else "y")
+    axes[1].set_ylabel("u (control)")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    page.figure(fig, "step_response", f"Set-point step at t = {a.step_at:.3g} s: the output (top) and the control "
+                "signal (bottom); solid with the shaper, dashed without. Unstable loops are not simulated.")
+    rows = []
+    after = a.step_at + 0.5 * (a.t[-1] - a.step_at)
+    for c in a.cases:
+        r = c.response
+        if r is None:
+            rows.append([c.label, math.nan, math.nan, math.nan, math.nan])
+            continue
+        rows.append([c.label, r.overshoot("y", start=a.step_at), r.settling_time("y", start=a.step_at),
+                     r.residual_vibration(after=after), r.peak("u")])
+    page.table(["loop", "overshoot of y [%]", "2 % settling time [s]", f"|y − y(end)| after {after:.3g} s",
+                "peak |u|"], rows)
+    page.code(f"import numpy as np\nt = np.arange(0.0, {spec.horizon:.4g}, {a.t[1] - a.t[0]:.4g})\n"
+              f"resp = pc.simulate(loop, t, w=(t >= {a.step_at:.4g}).astype(float))\n"
+              "print(resp.overshoot(\"y\"), resp.settling_time(\"y\"))\nresp.plot()", "Python:", language="python")
