@@ -247,3 +247,14 @@ def test_demo_shaper_table_has_no_empty_band() -> None:
     _check_page(page)
     width, band = _band(SimpleNamespace(width=0.0, low=1.0, high=1.0), 0.071)  # what insensitivity gives then
     assert band == "none: V at the model 7.1 % > 5 %" and math.isnan(width)
+
+
+def test_readme_plant_file_is_the_example() -> None:
+    """The README's plant file is examples/plant_two_mass.json (the demo's), and it loads."""
+    text = (REPOSITORY / "README.md").read_text(encoding="utf-8")
+    start = text.index("### A report for your own data")
+    block = text[text.index("```json", start) + len("```json"): text.index("```", text.index("```json", start) + 7)]
+    assert json.loads(block) == json.loads(PLANT.read_text(encoding="utf-8"))
+    spec = plant_spec(json.loads(block))
+    assert (spec.shaper, dict(spec.shaper_params), spec.controller, spec.ms) == ("zvdk", {"k": 2}, "pi", 1.4)
+    assert abs(spec.mode.omega - 3.2073511) < 1e-6  # seed 003: 3.2074 rad/s

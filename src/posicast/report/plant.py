@@ -52,10 +52,11 @@ class PlantAnalysis:
     ----------
     spec : PlantSpec
     S : Shaper
-    tuned, tuned_plain : TuningResult
-        The controller tuned with the shaper in its architecture, and without a shaper.
+    tuned : TuningResult
+        The controller tuned with the shaper in its architecture.
     cases : tuple of LoopCase
-        Your controller without and with the shaper (when the file gives one), the tuned ones.
+        Your controller without and with the shaper (when the file gives one), the tuned controller
+        without the shaper (same gains) and with it.
     t : ndarray
         Simulation time; the set-point step is at ``step_at``.
     """
@@ -63,7 +64,6 @@ class PlantAnalysis:
     spec: PlantSpec
     S: Shaper
     tuned: TuningResult
-    tuned_plain: TuningResult
     cases: tuple[LoopCase, ...]
     t: np.ndarray
     step_at: float
@@ -83,7 +83,7 @@ class PlantAnalysis:
                                                  "zeta": self.spec.mode.zeta},
                 "shaper": {"kind": self.spec.shaper, "duration": _num(self.S.duration)},
                 "architecture": self.spec.architecture,
-                "tuned": gains(self.tuned), "tuned_without_shaper": gains(self.tuned_plain),
+                "tuned": gains(self.tuned),
                 "loops": [{"label": c.label, "stable": bool(c.stability.stable), "reason": c.stability.reason,
                            "spectral_abscissa": _num(c.abscissa)} for c in self.cases]}
 
@@ -110,7 +110,7 @@ def _case(label: str, loop: Loop, shaped: bool, t: np.ndarray, w: np.ndarray) ->
 
 
 def analyse_plant(spec: PlantSpec) -> PlantAnalysis:
-    """Design the shaper, certify the loops, tune the controller with and without the shaper, simulate steps."""
+    """Design the shaper, tune the controller with it, certify the loops with and without it, simulate steps."""
     S = design(spec.shaper, spec.mode, **dict(spec.shaper_params))
     period = 2.0 * math.pi / spec.mode.omega
     dt = period / STEPS_PER_PERIOD
@@ -118,18 +118,18 @@ def analyse_plant(spec: PlantSpec) -> PlantAnalysis:
     step_at = min(period, 0.05 * spec.horizon)
     w = (t >= step_at).astype(float)
     F = spec.F if spec.has_load else None
-    tuned, plain = _tune(spec, S), _tune(spec, None)
+    tuned = _tune(spec, S)
     cases = []
     if spec.C is not None:
         cases.append(_case("your controller, no shaper", Loop(spec.architecture, G=spec.G, C=spec.C, F=F), False, t, w))
         cases.append(_case(f"your controller + {spec.shaper}", Loop(spec.architecture, G=spec.G, C=spec.C, F=F, S=S),
                            True, t, w))
     name = spec.controller.upper()
-    if plain.loop is not None:
-        cases.append(_case(f"tuned {name}, no shaper", plain.loop, False, t, w))
-    if tuned.loop is not None:
+    if tuned.loop is not None and tuned.controller is not None:
+        cases.append(_case(f"tuned {name}, shaper removed", Loop(spec.architecture, G=spec.G, C=tuned.controller, F=F),
+                           False, t, w))
         cases.append(_case(f"tuned {name} + {spec.shaper}", tuned.loop, True, t, w))
-    return PlantAnalysis(spec, S, tuned, plain, tuple(cases), t, step_at)
+    return PlantAnalysis(spec, S, tuned, tuple(cases), t, step_at)
 
 
 def plant_file_text(spec: PlantSpec) -> str:
@@ -194,14 +194,14 @@ def _tuning(page: Page, a: PlantAnalysis, path: str) -> None:
                    "intersected with the certified stability region, then the largest "
                    + ("integral gain" if spec.controller == "pi" else "proportional gain")
                    + (f" (derivative filter {PD_FILTER:g}/ω)" if spec.controller == "pd" else "")
-                   + "; with the shaper in the loop and without it.")
-    rows = []
-    for label, r in ((f"with {spec.shaper}", a.tuned), ("without shaper", a.tuned_plain)):
-        g = r.gains or {}
-        rows.append([label, g.get("kp", math.nan), g.get("ki" if spec.controller == "pi" else "kd", math.nan),
-                     r.ms, "yes" if r.stable else "no", r.reason])
+                   + f", with the shaper {spec.shaper} in the loop. The stability and step response of the same "
+                   "gains with the shaper removed are in the tables around this one.")
+    r = a.tuned
+    g = r.gains or {}
     page.table(["shaper", "Kp", "Ki" if spec.controller == "pi" else "Kd", "achieved Ms", "certified stable",
-                "why this point"], rows)
+                "why this point"],
+               [[spec.shaper, g.get("kp", math.nan), g.get("ki" if spec.controller == "pi" else "kd", math.nan),
+                 r.ms, "yes" if r.stable else "no", r.reason]])
     fn = "tune_pi" if spec.controller == "pi" else "tune_pd"
     extra = "" if spec.controller == "pi" else f", derivative_filter={PD_FILTER / spec.mode.omega:.4g}"
     load = ", F=F" if spec.has_load else ""
@@ -217,6 +217,9 @@ def _responses(page: Page, a: PlantAnalysis) -> None:
     spec = a.spec
     page.section("Step response with and without the shaper")
     shown = [c for c in a.cases if c.response is not None]
+    if not shown:
+        page.note("No stable loop to simulate: see the verdicts above.")
+        return
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2))
     for c in shown:
         r = c.response
