@@ -217,8 +217,9 @@ def test_plant_file_mode_from_the_load_and_delay(tmp_path) -> None:
 
 def test_one_number_format_per_column() -> None:
     assert format_column([0.0, 1.7e-17, 0.0553]) == ["0", "< 1e-12", "0.0553"]
-    assert format_column([0.0, 2.4e-8, 0.5]) == ["0", "2.400e-08", "5.000e-01"]
-    assert format_column([1.5, 123456.0]) == ["1.500e+00", "1.235e+05"]
+    assert format_column([0.0, 0.25]) == ["0.0000", "0.2500"]
+    assert format_column([0.0, 2.4e-8, 0.5, 22.52]) == ["0", "2.400e-08", "0.5000", "22.52"]
+    assert format_column([1.5, 123456.0, 0.0123]) == ["1.500", "1.235e+05", "0.01230"]
     assert format_column([float("nan"), None, float("-inf"), 2]) == ["–", "–", "−∞", "2"]
     assert format_number(-3e-13) == "< 1e-12"
     page = Page("t")

@@ -124,7 +124,7 @@ def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
         ratio = np.linspace(0.001, 3.0 if "MIS" in title else 2.0, 900)
         sensitivity_plot(shapers, ax=ax, ratio=ratio, labels=labels)
         ax.set_title(title, fontsize=10)
-    fig.suptitle(f"Residual vibration, omega = {mode.omega} rad/s, zeta = {mode.zeta} (reference: end of shaper)")
+    fig.suptitle(f"Residual vibration, ω = {mode.omega} rad/s, ζ = {mode.zeta} (reference: end of shaper)")
     fig.tight_layout()
     report.figure(fig, f"sensitivity_{tag}", "Residual vibration (seed 004 eq. 1-3, Singer-Seering normalisation) "
                   "against the actual-to-model frequency ratio; damping held at the model value.")
@@ -151,8 +151,8 @@ def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
 def _seed_checks(report: Report) -> None:
     m = CRANE[1]
     report.section("Seed 001 Table 1: distributed-delay shaper parameters",
-                   "omega = 5.49 rad/s, zeta = 0.008, T = pi/omega = 0.5722 s. The paper states T = 0.574 s "
-                   "(it does not equal pi/5.49); the last two columns use that printed T.")
+                   "ω = 5.49 rad/s, ζ = 0.008, T = π/ω = 0.5722 s. The paper states T = 0.574 s "
+                   "(it does not equal π/5.49); the last two columns use that printed T.")
     rows = []
     for kind, (tau_p, A_p) in SEED001_TABLE1.items():
         S = design(kind, m)
@@ -224,7 +224,7 @@ def _spectra_section(report: Report) -> None:
         unst = ", ".join(f"{z.real:.4f}{z.imag:+.3f}j" for z in st.unstable_roots if z.imag >= 0) or "–"
         cd = st.difference_abscissa
         rows.append([name, st.kind, "stable" if st.stable else "UNSTABLE", lp.spectral_abscissa(),
-                     "–" if cd is None else cd, unst])
+                     math.nan if cd is None else cd, unst])
     report.table(["loop", "type", "verdict", "spectral abscissa", "C_D (difference operator)",
                   "poles with Re s ≥ 0 (upper half)"], rows)
     report.note("The paper reports \"three couples of unstable higher frequency poles\" for the inverse ZV "
@@ -280,7 +280,7 @@ def _spectra_section(report: Report) -> None:
                      float(r.residuals.max()) if r.count else 0.0,
                      "yes" if r.shifted else "no", 1e3 * dt])
     report.table(["quasi-polynomial", "certified count", "roots returned", "max multiplicity",
-                  "max relative residual", "edge shifted", "time [ms]"], rows)
+                  "max relative residual", "edge shifted", "time [ms]"], rows, digits=[4, 4, 4, 4, 4, 4, 1])
     report.note("An edge is shifted outward when a root lies on it (s = 0 for the distributed shapers, whose "
                 "numerators vanish there); the count then covers the shifted rectangle.")
 

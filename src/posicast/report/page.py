@@ -5,8 +5,8 @@ The page has no external dependencies and opens offline; its figures are PNG fil
 when added, so a report that fails half-way leaves no file behind.
 
 Numbers in a table are formatted **per column** (:func:`format_column`): one style for the whole
-column (fixed decimals, or scientific when fixed decimals would hide a value), exact zeros as
-``0``, values below :data:`TINY` in magnitude (rounding-level residuals) as ``< 1e-12``, NaN as
+column (fixed decimals, or significant digits, scientific below 1e-3, when fixed decimals would hide a
+value), values below :data:`TINY` in magnitude (rounding-level residuals) as ``< 1e-12``, NaN as
 ``–``.  So a column never shows ``0.0000`` beside ``1.2e-17``.
 """
 
@@ -56,15 +56,19 @@ code{background:#f3f3f3;padding:0 3px}
 """
 
 
-def format_number(value: Any, style: str = "fixed", digits: int = 4) -> str:
-    """One number as a table shows it, in ``style`` ``"fixed"`` (``digits`` decimals) or ``"sci"``.
+def format_number(value: Any, style: str = "fixed", digits: int = 4, zero: str = "0") -> str:
+    """One number as a table shows it.
+
+    ``style`` ``"fixed"``: ``digits`` decimals; ``"sig"``: ``digits`` significant digits, positional
+    from 1e-3 to 1e5 and scientific outside.  Zero is ``zero``, a magnitude below :data:`TINY`
+    ``< 1e-12``, NaN and None ``–``.
 
     Examples
     --------
     >>> format_number(0.12345), format_number(0.0), format_number(3e-17), format_number(float("nan"))
     ('0.1235', '0', '< 1e-12', '–')
-    >>> format_number(2.5e-8, "sci"), format_number(float("inf"))
-    ('2.500e-08', '∞')
+    >>> format_number(2.5e-8, "sig"), format_number(22.5199, "sig"), format_number(float("inf"))
+    ('2.500e-08', '22.52', '∞')
     """
     if value is None:
         return MISSING
@@ -74,10 +78,16 @@ def format_number(value: Any, style: str = "fixed", digits: int = 4) -> str:
     if math.isinf(x):
         return "∞" if x > 0 else "−∞"
     if x == 0.0:
-        return "0"
-    if abs(x) < TINY:
+        return zero
+    a = abs(x)
+    if a < TINY:
         return f"< {TINY:.0e}"
-    return f"{x:.{max(digits - 1, 1)}e}" if style == "sci" else f"{x:.{digits}f}"
+    if style == "fixed":
+        return f"{x:.{digits}f}"
+    sig = max(digits, 1)
+    if 1e-3 <= a < 1e5:
+        return f"{x:.{max(sig - 1 - math.floor(math.log10(a)), 0)}f}"
+    return f"{x:.{max(sig - 1, 1)}e}"
 
 
 def _is_float(value: Any) -> bool:
@@ -85,39 +95,48 @@ def _is_float(value: Any) -> bool:
 
 
 def column_style(values: Sequence[Any], digits: int = 4) -> str:
-    """``"sci"`` when fixed decimals would hide a value of the column (below 10^(1-digits), or 1e5 and
-    above), else ``"fixed"``.  Zeros, tiny values and non-numbers do not count.
+    """``"sig"`` (significant digits) when ``digits`` decimals would hide a value of the column (one that
+    rounds to zero, or 1e5 and above), else ``"fixed"``.  Zeros, tiny values and non-numbers do not count.
 
     Examples
     --------
     >>> column_style([0.5, 1.25]), column_style([0.5, 2e-8]), column_style([0.5, 0.0, 1e-17])
-    ('fixed', 'sci', 'fixed')
+    ('fixed', 'sig', 'fixed')
+    >>> column_style([0.174, 0.0015, 1.23], digits=3)
+    'fixed'
     """
     for x in values:
         if _is_float(x) and math.isfinite(float(x)):
             a = abs(float(x))
-            if a >= TINY and (a < 10.0 ** (1 - max(digits, 1)) or a >= 1e5):
-                return "sci"
+            if a >= TINY and (a < 0.5 * 10.0 ** -digits or a >= 1e5):
+                return "sig"
     return "fixed"
 
 
 def format_column(values: Sequence[Any], digits: int = 4) -> list[str]:
     """The cells of one table column as text: every float in one style (:func:`column_style`).
 
-    Integers print as integers, strings as given (escaped), floats by :func:`format_number`.
+    Integers print as integers, strings as given (escaped), floats by :func:`format_number`; a zero
+    is written with the column's decimals, or ``0`` in a column of significant digits or one that
+    also holds values below :data:`TINY` (never ``0.0000`` beside ``< 1e-12`` or ``1.2e-17``).
 
     Examples
     --------
     >>> format_column([0.0, 1.7e-17, 0.0553])
     ['0', '< 1e-12', '0.0553']
-    >>> format_column([0.0, 2.4e-08, "n/a", 3])
-    ['0', '2.400e-08', 'n/a', '3']
+    >>> format_column([0.0, 0.25, 1.5])
+    ['0.0000', '0.2500', '1.5000']
+    >>> format_column([0.0, 2.4e-08, 22.52, "n/a", 3])
+    ['0', '2.400e-08', '22.52', 'n/a', '3']
     """
     style = column_style(values, digits)
+    floats = [float(x) for x in values if _is_float(x) and math.isfinite(float(x))]
+    plain_zero = style == "sig" or any(0.0 < abs(x) < TINY for x in floats)
+    zero = "0" if plain_zero else f"{0.0:.{digits}f}"
     out = []
     for x in values:
         if x is None or _is_float(x):
-            out.append(format_number(x, style, digits))
+            out.append(format_number(x, style, digits, zero))
         else:
             out.append(html.escape(str(x)))
     return out
