@@ -8,6 +8,7 @@ import sys
 
 from ..identification import NoModeFound
 from ..report import write_report
+from ..report.page import output_dir
 from .identification import _progress
 from .figures import pyplot
 
@@ -15,6 +16,7 @@ __all__ = ["run"]
 
 
 def run(args: argparse.Namespace) -> int:
+    output_dir(args.out_dir, "--out")  # checked before any work
     pyplot()  # the Agg backend before any figure is drawn
     try:
         summary = write_report(args.data, args.out_dir, firmware=args.firmware, axis=args.axis,

@@ -36,7 +36,7 @@ WIDE_COLUMNS = 7
 
 CSS = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.4}
-h1{border-bottom:2px solid #345}h2{margin-top:2.2em;border-bottom:2px solid #345;color:#234}
+h1,h2,h3,p{overflow-wrap:anywhere}h1{border-bottom:2px solid #345}h2{margin-top:2.2em;border-bottom:2px solid #345;color:#234}
 h3{margin-top:1.8em;border-bottom:1px solid #ccc}
 nav.toc{background:#f5f7fa;border:1px solid #d5dbe3;padding:0.3em 1em;margin:1em 0;font-size:0.9em}
 nav.toc>ol{margin:0.2em 0;padding-left:1.4em}nav.toc>ol>li{margin:0.25em 0}nav.toc>ol>li>a{font-weight:600}
