@@ -20,7 +20,8 @@ import pytest
 
 import posicast
 from posicast.cli import main
-from posicast.report import Page, format_column, format_number, load_plant, plant_spec, write_report
+from posicast.report import format_column, format_number, load_plant, plant_spec, write_report
+from posicast.report.page import Page
 from posicast_reports.demo import EXAMPLE_LOG, EXAMPLE_PLANT, REPOSITORY, user_first
 from posicast_reports.html import Report
 
@@ -196,10 +197,10 @@ def test_report_refusals_write_nothing(tmp_path, capsys) -> None:
     ({"plant": {"num": [1], "den": [1, 1, 4], "delay": -1}}, "plant.delay must be"),
     ({"plant": {"num": [1], "den": [1, 1, 4]}, "shaper": "zz"}, "shaper.kind must be one of"),
     ({"plant": {"num": [1], "den": [1, 1, 4]}, "architecture": "inside"}, "architecture must be one of"),
-    ([1, 2], "must hold a JSON object"),
+    ([1, 2], "data must be a plant description"),
 ])
 def test_plant_file_errors_name_the_key(data, words) -> None:
-    with pytest.raises(ValueError, match=re.escape(words)):
+    with pytest.raises((ValueError, TypeError), match=re.escape(words)):
         plant_spec(data)
 
 

@@ -29,7 +29,9 @@ from posicast.analysis import impulse_plot, insensitivity, residual_vibration, s
 from posicast.loops import control_action, inverse_shaper, spectrum_plot
 from posicast.identification.calibration import Calibration, calibrate
 from posicast.modes import Mode
-from posicast.report import analyse_plant, load_plant, machine_part, plant_part
+from posicast.report import analyse_plant, load_plant
+from posicast.report.machine import machine_part
+from posicast.report.plant import plant_part
 from posicast.shapers import design
 from posicast.shapers.ei import ei_fit_report
 from posicast.simulation import simulate

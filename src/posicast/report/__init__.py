@@ -15,10 +15,9 @@ tables that scroll instead of widening the page) is also the demo report's (``ma
 """
 
 from .build import ReportSummary, is_plant_file, write_report
-from .machine import machine_part
-from .page import Page, format_column, format_number
-from .plant import PlantAnalysis, analyse_plant, plant_part
+from .page import format_column, format_number
+from .plant import PlantAnalysis, analyse_plant
 from .plantfile import PlantSpec, load_plant, plant_spec
 
-__all__ = ["write_report", "ReportSummary", "is_plant_file", "machine_part", "plant_part", "analyse_plant",
-           "PlantAnalysis", "PlantSpec", "load_plant", "plant_spec", "Page", "format_column", "format_number"]
+__all__ = ["write_report", "ReportSummary", "is_plant_file", "analyse_plant", "PlantAnalysis", "PlantSpec",
+           "load_plant", "plant_spec", "format_column", "format_number"]

@@ -52,8 +52,12 @@ class ReportSummary:
 
 
 def is_plant_file(path: str | os.PathLike[str]) -> bool:
-    """A plant file is a ``.json`` file; anything else is read as a resonance test."""
-    return os.fspath(path).lower().endswith(".json")
+    """A plant file is a ``.json`` file; anything else is read as a resonance test.
+
+    >>> is_plant_file("machine.JSON"), is_plant_file("resonances_x.csv")
+    (True, False)
+    """
+    return v.path_text(path, "path").lower().endswith(".json")
 
 
 INTRO = ("<p>Made by <code>posicast report</code>. Each result is printed with the command and the Python code that "
@@ -109,8 +113,9 @@ def write_report(data: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         plant_part(page, analysis, texts[0])
         kind, details = "plant", analysis.to_dict()
     else:
-        fws = [firmware] if isinstance(firmware, str) else list(firmware)
-        fws = [f.strip().lower() for name in fws for f in str(name).split(",") if f.strip()]
+        names = [firmware] if isinstance(firmware, str) else v.sequence(firmware, "firmware", min_len=1)
+        fws = [f.strip().lower() for name in names for f in v.instance_of(name, str, "firmware", "firmware names "
+                                                                           "(str)").split(",") if f.strip()]
         cal = calibrate(texts, firmware=fws, axis=axis, progress=progress)
         names = ", ".join(Path(p).name for p in texts)
         page = Page(f"posicast report: {names}")

@@ -72,6 +72,11 @@ def format_number(value: Any, style: str = "fixed", digits: int = 4, zero: str =
     """
     if value is None:
         return MISSING
+    if not (_is_float(value) or isinstance(value, Integral)) or isinstance(value, bool):
+        raise TypeError(f"value must be a real number or None, got {type(value).__name__}")
+    style = v.choice(style, "style", ("fixed", "sig"))
+    digits = v.integer_in_range(digits, "digits", 0, 17)
+    zero = _text(zero, "zero")
     x = float(value)
     if math.isnan(x):
         return MISSING
@@ -129,6 +134,8 @@ def format_column(values: Sequence[Any], digits: int = 4) -> list[str]:
     >>> format_column([0.0, 2.4e-08, 22.52, "n/a", 3])
     ['0', '2.400e-08', '22.52', 'n/a', '3']
     """
+    values = v.sequence(values, "values")
+    digits = v.integer_in_range(digits, "digits", 0, 17)
     style = column_style(values, digits)
     floats = [float(x) for x in values if _is_float(x) and math.isfinite(float(x))]
     plain_zero = style == "sig" or any(0.0 < abs(x) < TINY for x in floats)

@@ -15,6 +15,7 @@ from typing import Any
 import matplotlib.pyplot as plt
 import numpy as np
 
+from .. import _validate as v
 from ..loops import Loop
 from ..shapers import Shaper, design
 from ..simulation import SimulationResponse, simulate
@@ -110,7 +111,11 @@ def _case(label: str, loop: Loop, shaped: bool, t: np.ndarray, w: np.ndarray) ->
 
 
 def analyse_plant(spec: PlantSpec) -> PlantAnalysis:
-    """Design the shaper, tune the controller with it, certify the loops with and without it, simulate steps."""
+    """Design the shaper, tune the controller with it, certify the loops with and without it, simulate steps.
+
+    ``spec`` comes from :func:`~posicast.report.plantfile.load_plant` or :func:`~posicast.report.plantfile.plant_spec`.
+    """
+    v.instance_of(spec, PlantSpec, "spec", "a PlantSpec (from load_plant or plant_spec)")
     S = design(spec.shaper, spec.mode, **dict(spec.shaper_params))
     period = 2.0 * math.pi / spec.mode.omega
     dt = period / STEPS_PER_PERIOD

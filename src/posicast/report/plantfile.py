@@ -120,13 +120,16 @@ def load_plant(path: str | Path) -> PlantSpec:
         raise ValueError(f"{text}: not a plant file (JSON): not UTF-8 text") from None
     except OSError as exc:
         raise ValueError(f"cannot read {text!r}: {exc.strerror or exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{text}: a plant file must hold a JSON object, got {type(data).__name__}")
     return plant_spec(data, Path(text).stem)
 
 
 def plant_spec(data: Any, default_name: str = "plant") -> PlantSpec:
     """Check a plant description (the parsed JSON object) and return the :class:`PlantSpec`."""
     if not isinstance(data, dict):
-        raise ValueError(f"a plant file must hold a JSON object, got {type(data).__name__}")
+        raise TypeError(f"data must be a plant description (a dict, as a plant file's JSON object), "
+                        f"got {type(data).__name__}")
     unknown = sorted(set(data) - set(KEYS))
     if unknown:
         raise ValueError(f"unknown key(s) in the plant file: {', '.join(unknown)} (known: {', '.join(KEYS)})")
