@@ -260,3 +260,20 @@ def test_readme_plant_file_is_the_example() -> None:
     spec = plant_spec(json.loads(block))
     assert (spec.shaper, dict(spec.shaper_params), spec.controller, spec.ms) == ("zvdk", {"k": 2}, "pi", 1.4)
     assert abs(spec.mode.omega - 3.2073511) < 1e-6  # seed 003: 3.2074 rad/s
+
+
+def test_plant_with_a_delay_keeps_its_verdicts(tmp_path) -> None:
+    """Seed 000 section V with 5 ms of dead time and the inverse DZV, a PD tuned: the simulator cannot run a
+    rational block with a delay, so the responses say why; the certified verdicts and the tuning are there."""
+    p = tmp_path / "s0.json"
+    p.write_text(json.dumps({"plant": {"num": [1], "den": [1, 1, 0], "delay": 0.005},
+                             "load": {"num": [1, 0], "den": [1, 0.6, 100]},
+                             "controller": {"num": [10, 10], "den": [0.01, 1]}, "shaper": "dzv",
+                             "architecture": "inverse_shaper", "tune": {"controller": "pd", "ms": 2}}))
+    s = write_report(p, tmp_path / "out")
+    assert [x["stable"] for x in s.details["loops"]] == [True] * 4 and s.figures == ()
+    page = _Page(s.index.read_text(encoding="utf-8"))
+    _check_page(page)
+    notes = [r[-1] for t in page.tables if t[0][-1:] == ["note"] for r in t[1:]]
+    assert len(notes) == 4 and all(n.startswith("not simulated: ") for n in notes)
+    assert s.details["tuned"]["gains"]["kd"] > 0 and s.details["tuned"]["stable"]

@@ -43,6 +43,7 @@ class LoopCase:
     abscissa: float
     response: SimulationResponse | None
     shaped: bool
+    note: str = ""
 
 
 @dataclass(frozen=True)
@@ -106,7 +107,12 @@ def _case(label: str, loop: Loop, shaped: bool, t: np.ndarray, w: np.ndarray) ->
         absc = float(loop.spectral_abscissa())
     except ValueError:
         absc = math.nan
-    resp = simulate(loop, t, w=w) if st.stable else None
+    if not st.stable:
+        return LoopCase(label, loop, st, absc, None, shaped, "not simulated: not stable")
+    try:
+        resp = simulate(loop, t, w=w)
+    except ValueError as exc:  # a loop the simulator cannot run (e.g. a rational block with a delay)
+        return LoopCase(label, loop, st, absc, None, shaped, f"not simulated: {exc}")
     return LoopCase(label, loop, st, absc, resp, shaped)
 
 
@@ -223,7 +229,7 @@ def _responses(page: Page, a: PlantAnalysis) -> None:
     page.section("Step response with and without the shaper")
     shown = [c for c in a.cases if c.response is not None]
     if not shown:
-        page.note("No stable loop to simulate: see the verdicts above.")
+        page.note("No loop simulated: " + "; ".join(html.escape(f"{c.label}: {c.note}") for c in a.cases))
         return
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2))
     for c in shown:
@@ -241,18 +247,19 @@ def _responses(page: Page, a: PlantAnalysis) -> None:
     axes[0].legend(fontsize=8, loc="lower right")
     fig.tight_layout()
     page.figure(fig, "step_response", f"Set-point step at t = {a.step_at:.3g} s: the output (top) and the control "
-                "signal (bottom); solid with the shaper, dashed without. Unstable loops are not simulated.")
+                "signal (bottom); solid with the shaper, dashed without. Unstable loops are not simulated (see the "
+                "table's notes).")
     rows = []
     after = a.step_at + 0.5 * (a.t[-1] - a.step_at)
     for c in a.cases:
         r = c.response
         if r is None:
-            rows.append([c.label, math.nan, math.nan, math.nan, math.nan])
+            rows.append([c.label, math.nan, math.nan, math.nan, math.nan, c.note])
             continue
         rows.append([c.label, r.overshoot("y", start=a.step_at), r.settling_time("y", start=a.step_at),
-                     r.residual_vibration(after=after), r.peak("u")])
+                     r.residual_vibration(after=after), r.peak("u"), c.note])
     page.table(["loop", "overshoot of y [%]", "2 % settling time [s]", f"|y − y(end)| after {after:.3g} s",
-                "peak |u|"], rows)
+                "peak |u|", "note"], rows)
     page.code(f"import numpy as np\nt = np.arange(0.0, {spec.horizon:.4g}, {a.t[1] - a.t[0]:.4g})\n"
               f"resp = pc.simulate(loop, t, w=(t >= {a.step_at:.4g}).astype(float))\n"
               "print(resp.overshoot(\"y\"), resp.settling_time(\"y\"))\nresp.plot()", "Python:", language="python")
