@@ -228,9 +228,28 @@ def _responses(page: Page, a: PlantAnalysis) -> None:
     spec = a.spec
     page.section("Step response with and without the shaper")
     shown = [c for c in a.cases if c.response is not None]
-    if not shown:
-        page.note("No loop simulated: " + "; ".join(html.escape(f"{c.label}: {c.note}") for c in a.cases))
-        return
+    if shown:
+        _response_figure(page, a, shown)
+    else:
+        page.note("No loop simulated (the table says why).")
+    rows = []
+    after = a.step_at + 0.5 * (a.t[-1] - a.step_at)
+    for c in a.cases:
+        r = c.response
+        if r is None:
+            rows.append([c.label, math.nan, math.nan, math.nan, math.nan, c.note])
+            continue
+        rows.append([c.label, r.overshoot("y", start=a.step_at), r.settling_time("y", start=a.step_at),
+                     r.residual_vibration(after=after), r.peak("u"), c.note])
+    page.table(["loop", "overshoot of y [%]", "2 % settling time [s]", f"|y − y(end)| after {after:.3g} s",
+                "peak |u|", "note"], rows)
+    page.code(f"import numpy as np\nt = np.arange(0.0, {spec.horizon:.4g}, {a.t[1] - a.t[0]:.4g})\n"
+              f"resp = pc.simulate(loop, t, w=(t >= {a.step_at:.4g}).astype(float))\n"
+              "print(resp.overshoot(\"y\"), resp.settling_time(\"y\"))\nresp.plot()", "Python:", language="python")
+
+
+def _response_figure(page: Page, a: PlantAnalysis, shown: list[LoopCase]) -> None:
+    spec = a.spec
     fig, axes = plt.subplots(2, 1, sharex=True, figsize=(9, 5.2))
     for c in shown:
         r = c.response
@@ -249,17 +268,3 @@ def _responses(page: Page, a: PlantAnalysis) -> None:
     page.figure(fig, "step_response", f"Set-point step at t = {a.step_at:.3g} s: the output (top) and the control "
                 "signal (bottom); solid with the shaper, dashed without. Unstable loops are not simulated (see the "
                 "table's notes).")
-    rows = []
-    after = a.step_at + 0.5 * (a.t[-1] - a.step_at)
-    for c in a.cases:
-        r = c.response
-        if r is None:
-            rows.append([c.label, math.nan, math.nan, math.nan, math.nan, c.note])
-            continue
-        rows.append([c.label, r.overshoot("y", start=a.step_at), r.settling_time("y", start=a.step_at),
-                     r.residual_vibration(after=after), r.peak("u"), c.note])
-    page.table(["loop", "overshoot of y [%]", "2 % settling time [s]", f"|y − y(end)| after {after:.3g} s",
-                "peak |u|", "note"], rows)
-    page.code(f"import numpy as np\nt = np.arange(0.0, {spec.horizon:.4g}, {a.t[1] - a.t[0]:.4g})\n"
-              f"resp = pc.simulate(loop, t, w=(t >= {a.step_at:.4g}).astype(float))\n"
-              "print(resp.overshoot(\"y\"), resp.settling_time(\"y\"))\nresp.plot()", "Python:", language="python")
