@@ -171,7 +171,7 @@ def _build_parser() -> _Parser:
     r = sub.add_parser("report", help="an HTML report for your resonance test(s) or plant file (issue #20)")
     r.add_argument("data", nargs="+", metavar="DATA",
                    help="Klipper raw logs or PSD files (what 'calibrate' reads), or one plant file (.json, see README)")
-    r.add_argument("--out", dest="out_dir", default="report", help="output folder (default: report)")
+    r.add_argument("--out", dest="out_dir", metavar="DIR", default="report", help="output folder (default: report)")
     r.add_argument("--firmware", default="klipper", help="for logs: as for 'calibrate' (default klipper)")
     r.add_argument("--axis", choices=("x", "y", "z"), help="for logs: the tested axis when the file names do not say")
     r.add_argument("--json", action="store_true", help="print a machine-readable summary")
