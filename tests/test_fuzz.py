@@ -36,6 +36,7 @@ import copy
 import functools
 import importlib
 import inspect
+import json
 import math
 import os
 import pkgutil
@@ -892,6 +893,7 @@ def entry_table() -> list[Entry]:
                  "sampled_28hz", "two_mass_plants"):
         table.append(E(name, lambda _f=getattr(cases, name), **k: _f(**k), lambda: {}, {}))
     table += _sweep_entries(E)  # issue #19
+    table += _report_entries(E)  # issue #20
     return table
 
 
@@ -933,6 +935,36 @@ def _sweep_entries(E: Callable[..., Entry]) -> list[Entry]:
         E("SweepResult.parameter", lambda **k: SWEPT().parameter(**k), lambda: {"name": "omega"}, {"name": "str"}),
         E("SweepResult.plot", lambda **k: SWEPT().plot(**k), lambda: {"value": "value"},
           {"value": "str", "ax": "object"}),
+    ]
+
+
+def _plant_file(data: dict[str, Any]) -> str:
+    path = DATA_DIR() / "plant.json"
+    if not path.exists():
+        path.write_text(json.dumps(data))
+    return str(path)
+
+
+# ---- issue #20: posicast report (a real Klipper file from the repository: the report's own example)
+def _report_entries(E: Callable[..., Entry]) -> list[Entry]:
+    report = importlib.import_module("posicast.report")
+    log = str(Path(__file__).resolve().parent / "data" / "real" / "iconoclastxyz_v24_resonances_y_20220507.csv")
+    plant = {"plant": {"num": [1.0], "den": [1.0, 0.4, 4.0, 0.0]}, "tune": {"controller": "pd", "ms": 2.0},
+             "horizon": 20.0}
+    return [
+        E("write_report", lambda **k: report.write_report(**k),
+          lambda: {"data": log, "out": str(DATA_DIR() / "report_out")},
+          {"data": "path_in", "out": "path_dir", "firmware": "str", "axis": "str"}, writes=True, timeout=6.0,
+          pool_limit=8, examples=1),
+        E("load_plant", lambda **k: report.load_plant(**k), lambda: {"path": _plant_file(plant)}, {"path": "path_in"}),
+        E("plant_spec", lambda **k: report.plant_spec(**k), lambda: {"data": dict(plant)}, {"data": "object"}),
+        E("analyse_plant", lambda **k: report.analyse_plant(**k), lambda: {"spec": report.plant_spec(plant)},
+          {"spec": "object"}, timeout=6.0, examples=1),
+        E("is_plant_file", lambda **k: report.is_plant_file(**k), lambda: {"path": "p.json"}, {"path": "str"}),
+        E("format_number", lambda **k: report.format_number(**k), lambda: {"value": 0.5},
+          {"value": "real", "style": "str", "digits": "int", "zero": "str"}),
+        E("format_column", lambda **k: report.format_column(**k), lambda: {"values": [0.5, 1e-17]},
+          {"values": "array", "digits": "int"}),
     ]
 
 
@@ -1017,6 +1049,9 @@ NOT_CALLED = {
     "SchedulerUnreachable": "exception class",
     "WorkerFailure": "exception class",
     "StoreMismatch": "exception class",
+    "ReportSummary": "result of write_report",
+    "PlantSpec": "result of load_plant / plant_spec",
+    "PlantAnalysis": "result of analyse_plant",
 }
 ALIASES: dict[str, tuple[str, ...]] = {}
 

@@ -20,7 +20,7 @@ Layers (low to high):
    it shares the layer, and a sideways import within a layer is allowed.
 4.5. ``sweeps``: runs the applications over grids and draws (on Dask); above them, below io and cli.
 5. ``io`` (export) and ``testing`` (synthetic data, brute-force region check).
-6. ``cli``, ``__main__`` and the package's ``__init__`` (the façade that re-exports
+6. ``cli``, ``commands``, ``report`` (the user-first HTML report), ``__main__`` and the package's ``__init__`` (the façade that re-exports
    the public names: nothing inside posicast may import ``posicast`` itself).
 
 The test fails on any upward import, naming file and line.  A lazy name table
@@ -52,6 +52,7 @@ LAYERS: dict[str, float] = {
     "sweeps": 4.5,  # issue #19: maps the applications over parameter spaces; io and cli may use it
     "io": 5, "testing": 5,
     "cli": 6, "commands": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
+    "report": 6,  # issue #20: the user-first report (posicast report DATA) uses every application, like the CLI
 }
 
 # Deprecated aliases: (file, imported module) allowed upward inside the module-level __getattr__ only.

@@ -205,6 +205,14 @@ def _build_parser() -> _Parser:
     _add_sweep_parser(sub)
     _add_stability_parser(sub)
     _add_simulate_parser(sub)
+
+    r = sub.add_parser("report", help="an HTML report for your resonance test(s) or plant file (issue #20)")
+    r.add_argument("data", nargs="+", metavar="DATA",
+                   help="Klipper raw logs or PSD files (what 'calibrate' reads), or one plant file (.json, see README)")
+    r.add_argument("--out", dest="out_dir", metavar="DIR", default="report", help="output folder (default: report)")
+    r.add_argument("--firmware", default="klipper", help="for logs: as for 'calibrate' (default klipper)")
+    r.add_argument("--axis", choices=("x", "y", "z"), help="for logs: the tested axis when the file names do not say")
+    _add_output_args(r, progress=True)
     return parser
 
 
@@ -319,6 +327,7 @@ _COMMANDS = {
     "qft": "qft", "sweep": "sweep",
     "stability": "stability",
     "simulate": "simulate",
+    "report": "report",
 }
 
 # Output-path options checked by _run before any subcommand starts work.

@@ -12,7 +12,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 if __name__ == "__main__":
     # Run as the report (``python -m posicast_reports.demo``), before numpy loads its BLAS: one BLAS
@@ -27,7 +27,11 @@ import numpy as np
 
 from posicast.analysis import impulse_plot, insensitivity, residual_vibration, sensitivity_curve, sensitivity_plot
 from posicast.loops import control_action, inverse_shaper, spectrum_plot
+from posicast.identification.calibration import Calibration, calibrate
 from posicast.modes import Mode
+from posicast.report import analyse_plant, load_plant
+from posicast.report.machine import machine_part
+from posicast.report.plant import plant_part
 from posicast.shapers import design
 from posicast.shapers.ei import ei_fit_report
 from posicast.simulation import simulate
@@ -40,8 +44,18 @@ from .seed001_report import seed001_section
 from .seed003_report import seed003_section
 from .sweep_report import sweep_section
 
-CRANE = ("seed 001 gantry crane sway mode", Mode(5.49, 0.008))
-LINK = ("seed 000 Quanser flexible-link mode", Mode(8.98, 0.14))
+REPOSITORY = Path(__file__).resolve().parents[2]  # src/posicast_reports/ -> the repository
+#: The user-first parts' example data: a real Klipper resonance test and a plant file (paths in the repository).
+EXAMPLE_LOG = "tests/data/real/iconoclastxyz_v24_resonances_y_20220507.csv"
+EXAMPLE_LOG_ABOUT = ("A real resonance test: a Voron 2.4 (Formbot kit), Y axis, Klipper's <code>TEST_RESONANCES</code> "
+                     "output from the IconoclastXYZ/Voron repository (CC0; <code>tests/data/real/MANIFEST.md</code>). "
+                     "Its owner published Klipper's recommendation for this run: mzv @ 40.8 Hz.")
+EXAMPLE_PLANT = "examples/plant_two_mass.json"
+EXAMPLE_PLANT_ABOUT = ("An example plant file: seed 003's two-mass plant (force on the first mass to the position "
+                       "of the second) with the seed's PI and a ZVD² shaper inside the loop.")
+
+CRANE = ("Seed 001 gantry crane sway mode", Mode(5.49, 0.008))
+LINK = ("Seed 000 Quanser flexible-link mode", Mode(8.98, 0.14))
 
 # (label, kind, params): every kind of posicast.design
 CATALOGUE: list[tuple[str, str, dict]] = [
@@ -69,6 +83,13 @@ CATALOGUE: list[tuple[str, str, dict]] = [
 SEED001_TABLE1 = {"dezv": (0.286, 0.395), "dtzv": (0.287, 0.454), "dczv": (0.287, 0.465), "dtazv": (0.39, 0.436)}
 
 
+def _band(ins: Any, v_model: float) -> tuple[float, str]:
+    """The 5 % insensitivity as (width, 'low – high'); an empty band says why instead of showing 1.0000–1.0000."""
+    if ins.width > 0:
+        return ins.width, f"{ins.low:.4f} – {ins.high:.4f}"
+    return math.nan, f"none: V at the model {100 * v_model:.1f} % > 5 %"
+
+
 def _shaper_table(report: Report, mode: Mode) -> None:
     rows = []
     for label, kind, params in CATALOGUE:
@@ -77,11 +98,11 @@ def _shaper_table(report: Report, mode: Mode) -> None:
         ins = insensitivity(S, 0.05, reference=ref)
         v_model = residual_vibration(S, mode.omega, mode.zeta, reference=ref)
         dist = ", ".join(f"{p.kernels[0].shape} {p.length:.4f} s" for p in S.distributed) or "–"
-        rows.append([label, S.duration, S.n_impulses, dist, v_model, ins.width, ins.low, ins.high,
-                     abs(S(mode.pole))])
+        width, band = _band(ins, v_model)
+        rows.append([label, S.duration, S.n_impulses, dist, v_model, width, band, abs(S(mode.pole))])
     report.table(
         ["shaper", "duration [s]", "impulses", "distributed part", "V at model", "insensitivity 5 %",
-         "band low", "band high", "|S(p)|"],
+         "5 % band [ω/ω_model]", "|S(p)|"],
         rows,
     )
 
@@ -105,7 +126,7 @@ def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
         ratio = np.linspace(0.001, 3.0 if "MIS" in title else 2.0, 900)
         sensitivity_plot(shapers, ax=ax, ratio=ratio, labels=labels)
         ax.set_title(title, fontsize=10)
-    fig.suptitle(f"Residual vibration, omega = {mode.omega} rad/s, zeta = {mode.zeta} (reference: end of shaper)")
+    fig.suptitle(f"Residual vibration, ω = {mode.omega} rad/s, ζ = {mode.zeta} (reference: end of shaper)")
     fig.tight_layout()
     report.figure(fig, f"sensitivity_{tag}", "Residual vibration (seed 004 eq. 1-3, Singer-Seering normalisation) "
                   "against the actual-to-model frequency ratio; damping held at the model value.")
@@ -132,8 +153,8 @@ def _sensitivity_figures(report: Report, mode: Mode, tag: str) -> None:
 def _seed_checks(report: Report) -> None:
     m = CRANE[1]
     report.section("Seed 001 Table 1: distributed-delay shaper parameters",
-                   "omega = 5.49 rad/s, zeta = 0.008, T = pi/omega = 0.5722 s. The paper states T = 0.574 s "
-                   "(it does not equal pi/5.49); the last two columns use that printed T.")
+                   "ω = 5.49 rad/s, ζ = 0.008, T = π/ω = 0.5722 s. The paper states T = 0.574 s "
+                   "(it does not equal π/5.49); the last two columns use that printed T.")
     rows = []
     for kind, (tau_p, A_p) in SEED001_TABLE1.items():
         S = design(kind, m)
@@ -205,7 +226,7 @@ def _spectra_section(report: Report) -> None:
         unst = ", ".join(f"{z.real:.4f}{z.imag:+.3f}j" for z in st.unstable_roots if z.imag >= 0) or "–"
         cd = st.difference_abscissa
         rows.append([name, st.kind, "stable" if st.stable else "UNSTABLE", lp.spectral_abscissa(),
-                     "–" if cd is None else cd, unst])
+                     math.nan if cd is None else cd, unst])
     report.table(["loop", "type", "verdict", "spectral abscissa", "C_D (difference operator)",
                   "poles with Re s ≥ 0 (upper half)"], rows)
     report.note("The paper reports \"three couples of unstable higher frequency poles\" for the inverse ZV "
@@ -261,7 +282,7 @@ def _spectra_section(report: Report) -> None:
                      float(r.residuals.max()) if r.count else 0.0,
                      "yes" if r.shifted else "no", 1e3 * dt])
     report.table(["quasi-polynomial", "certified count", "roots returned", "max multiplicity",
-                  "max relative residual", "edge shifted", "time [ms]"], rows)
+                  "max relative residual", "edge shifted", "time [ms]"], rows, digits=[4, 4, 4, 4, 4, 4, 1])
     report.note("An edge is shifted outward when a root lies on it (s = 0 for the distributed shapers, whose "
                 "numerators vanish there); the count then covers the shifted rectangle.")
 
@@ -331,6 +352,34 @@ class Progress:
         self.wall, self.cpu = wall, cpu
 
 
+INTRO = (
+    "<p>The first two parts show what posicast does with <i>your</i> data, on built-in examples, each result with "
+    "the command and the Python code that produce it; <code>posicast report FILE --out DIR</code> writes them for "
+    "your own resonance test or plant file (README, \"A report for your own data\"). Then printer calibration, "
+    "the seed papers' reproductions, and what goes beyond them.</p>"
+    "<p><small>Number formats: one per table column; <code>&lt; 1e-12</code> is a value at rounding level (a "
+    "residual that is zero in exact arithmetic), <code>–</code> none. Residual vibration uses the Singer-Seering "
+    "normalisation V = e<sup>-ζω t<sub>end</sub></sup>|S(p)| (seeds 003, 004) unless stated.</small></p>")
+
+
+def user_first(report: Report) -> Calibration | None:
+    """The parts "Your data → your shaper" and "Your plant → your loop" on the example data (about 2 s).
+
+    Returns the example log's calibration (None when the repository's data are not there)."""
+    log, plant = REPOSITORY / EXAMPLE_LOG, REPOSITORY / EXAMPLE_PLANT
+    cal = None
+    if log.is_file():
+        cal = calibrate(log)
+        machine_part(report, cal, [EXAMPLE_LOG], about=EXAMPLE_LOG_ABOUT)
+    else:
+        report.part("Your data → your shaper", f"The example log {EXAMPLE_LOG} is not in this installation.")
+    if plant.is_file():
+        plant_part(report, analyse_plant(load_plant(plant)), EXAMPLE_PLANT, about=EXAMPLE_PLANT_ABOUT)
+    else:
+        report.part("Your plant → your loop", f"The example plant file {EXAMPLE_PLANT} is not in this installation.")
+    return cal
+
+
 def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     """Build the demo report in ``out`` and return the path of ``index.html``.
 
@@ -339,15 +388,23 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     t0 = time.perf_counter()
     say = (progress or Progress()).done
     report = Report("posicast demo report", out)
-    report.paragraph("Every shaper kind of <code>posicast.design</code>, designed for two modes from the seed "
-                     "papers, with its duration, number of impulses and insensitivity at 5 % residual vibration. "
-                     "Residual vibration uses the Singer-Seering normalisation "
-                     "V = e<sup>-ζω t<sub>end</sub></sup>|S(p)| (seeds 003, 004) unless stated.")
+    report.intro = INTRO
+    user_first(report)
+    say("your data → your shaper, your plant → your loop")
+    report.part("Printer calibration and identification",
+                "Identification of lightly damped modes against seed 002, and posicast's calibration on a synthetic "
+                "Klipper test and on every real resonance file in the repository beside Klipper's own pick.")
+    identification_section(report)
+    say("identification and calibration")
+    report.part("Seed reproductions",
+                "Every shaper kind of <code>posicast.design</code>, designed for two modes from the seed papers, "
+                "with its duration, number of impulses and insensitivity at 5 % residual vibration; then each "
+                "seed's tables and figures re-computed.")
     for i, (title, mode) in enumerate((CRANE, LINK)):
-        report.section(f"{title}: omega = {mode.omega} rad/s, zeta = {mode.zeta}")
+        report.section(f"{title}: ω = {mode.omega} rad/s, ζ = {mode.zeta}")
         _shaper_table(report, mode)
         _sensitivity_figures(report, mode, f"mode{i}")
-        say(f"shapers for the {title}")
+        say(f"shapers for the {title[0].lower()}{title[1:]}")
     _seed_checks(report)
     _ei_section(report)
     say("seed checks and EI fit")
@@ -359,8 +416,8 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     say("seed 001 tuning (Table 1, Fig. 5-12)")
     seed003_section(report)
     say("seed 003 QFT inner loop")
-    identification_section(report)
-    say("identification and calibration")
+    report.part("Beyond the seeds", "Optimal shapers (specified insensitivity, unity magnitude, firmware limits) and "
+                "sweeps over parameter spaces.")
     optimal_section(report)
     say("optimal shapers")
     sweep_section(report)
