@@ -143,13 +143,13 @@ def _lines_section(page: Page, cal: Calibration) -> None:
 
 def _sensitivity_section(page: Page, cal: Calibration) -> None:
     page.section("Spectrum, fit and sensitivity")
-    page.figure(calibration_plot(cal), "calibration",
+    page.figure(calibration_plot(cal)[0], "calibration",
                 "Left: the measured spectrum (dots), the fitted model, the excitation's shape (dotted), the fitted "
                 "band (dashed) and each mode's 95 % frequency interval (shaded). Right: the vibration left by the "
                 "recommended setting (solid) and by the firmware tool's own pick (dashed) against frequency, over "
                 "the spectrum the firmware scores on (grey); worst over damping 0.075–0.15.")
     page.code("from posicast.identification.plots import calibration_plot\n"
-              "calibration_plot(cal).savefig(\"calibration.png\")", "Python (the command's --plot writes it):",
+              "calibration_plot(cal)[0].savefig(\"calibration.png\")", "Python (the command's --plot writes it):",
               language="python")
 
 
