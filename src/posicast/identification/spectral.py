@@ -130,7 +130,7 @@ def _fit(model: SpectralModel, theta0: np.ndarray, iterations: int = 3, rtol: fl
     model.weights = 0.05 / model.floor
 
     def run(x: np.ndarray) -> np.ndarray:
-        return _levenberg_marquardt(model.residual_and_jacobian, x, lo, hi, rtol=rtol)
+        return _levenberg_marquardt(model.residual_and_jacobian_lazy, x, lo, hi, rtol=rtol)
 
     th = run(th)
     M, _ = model.solve(th)
@@ -173,18 +173,22 @@ def _dispersion(model: SpectralModel, M: np.ndarray, n_par: int) -> tuple[float,
     return phi, max(infl, 1.0), r
 
 
-def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], x0: np.ndarray,
-                         lo: np.ndarray, hi: np.ndarray, *, max_iter: int = 60, rtol: float = 1e-9) -> np.ndarray:
+def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, Callable[[], np.ndarray]]],
+                         x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, max_iter: int = 60,
+                         rtol: float = 1e-9) -> np.ndarray:
     """Levenberg-Marquardt (Marquardt's diagonal scaling) with steps clipped to the bounds.
 
     A few poles on a few hundred bins: scipy's trust-region reflective solver spent
     most of its time in its own bookkeeping here (60 iterations per fit at 1e-10
-    tolerances); this stops when the cost changes by less than ``rtol``.
+    tolerances); this stops when the cost changes by less than ``rtol``.  ``fun``
+    returns the residual and a function giving the Jacobian, called only at accepted
+    points (issue #15).
     """
     x = np.clip(np.asarray(x0, float), lo, hi)
     if x.size == 0:
         return x
-    r, J = fun(x)
+    r, jac = fun(x)
+    J = jac()
     cost = float(r @ r)
     lam = 1e-3
     for _ in range(max_iter):
@@ -200,7 +204,7 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarra
                 lam *= 10.0
                 continue
             xn = np.clip(x + step, lo, hi)
-            rn, Jn = fun(xn)
+            rn, jac_n = fun(xn)
             cn = float(rn @ rn)
             if cn < cost:
                 improved = True
@@ -209,10 +213,11 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarra
         if not improved:
             break
         done = cost - cn <= rtol * cost
-        x, r, J, cost = xn, rn, Jn, cn
-        lam = max(lam / 5.0, 1e-12)
+        x, r, cost = xn, rn, cn
         if done:
             break
+        J = jac_n()
+        lam = max(lam / 5.0, 1e-12)
     return x
 
 
@@ -221,9 +226,8 @@ def _fit_new_pole(model: SpectralModel, theta: np.ndarray, new: np.ndarray) -> t
     lo, hi = pole_bounds(model, 1)
     k = theta.size
 
-    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r, J = model.residual_and_jacobian(np.r_[theta, x])
-        return r, J[:, k:]
+    def fun(x: np.ndarray) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
+        return model.residual_and_jacobian_lazy(np.r_[theta, x], first=k)
 
     x = _levenberg_marquardt(fun, new, lo + 1e-9, hi - 1e-9, max_iter=15, rtol=1e-5)
     th = np.r_[theta, x]

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -163,6 +164,7 @@ class SpectralModel:
         self.W2 = (2 * math.pi * ff) ** 2
         extra = [(self.f[0] / ff) ** 2] if self.low else []  # the slow sweep's lines
         self.extra = self._reduce(np.column_stack(extra + [np.ones_like(ff)]) * self.norm_f[:, None])
+        self._factors: dict[tuple[float, float], tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]] = {}
 
     def _reduce(self, A: np.ndarray) -> np.ndarray:
         """Kernel average of sub-point columns ``[bins * nsub, k]`` onto the bins ``[bins, k]``."""
@@ -174,15 +176,29 @@ class SpectralModel:
         """``prod_k |D_k|^2 / w_k^4`` and, per mode, ``d ln(.)/d ln w_k`` and ``d ln(.)/d zeta_k``."""
         den = np.ones_like(self.W2)
         grads = []
-        W2 = self.W2
         for k in range(theta.size // 2):
-            w, z = math.exp(theta[2 * k]), theta[2 * k + 1]
-            w2 = w * w
-            re = w2 - W2
-            D2 = re * re + 4.0 * z * z * w2 * W2
-            den = den * (D2 / (w2 * w2))
-            grads.append(((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
+            factor, grad = self._mode_factor(float(theta[2 * k]), float(theta[2 * k + 1]))
+            den = den * factor
+            grads.append(grad)
         return den, grads
+
+    def _mode_factor(self, log_w: float, z: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """One mode's factor ``|D_k|^2 / w_k^4`` and its two log-gradients, remembered for the last few poles:
+        the forward selection screens a new pole with the others held fixed (issue #15; the same numbers)."""
+        key = (log_w, z)
+        hit = self._factors.get(key)
+        if hit is not None:
+            return hit
+        W2 = self.W2
+        w = math.exp(log_w)
+        w2 = w * w
+        re = w2 - W2
+        D2 = re * re + 4.0 * z * z * w2 * W2
+        out = (D2 / (w2 * w2), ((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
+        if len(self._factors) >= 16:
+            self._factors.pop(next(iter(self._factors)))
+        self._factors[key] = out
+        return out
 
     def columns(self, theta: np.ndarray) -> np.ndarray:
         """``E R(f^2) / prod |D_k|^2`` with ``R`` a polynomial of degree ``2 n`` (Chebyshev basis), ``1/f^2``, 1.
@@ -230,18 +246,30 @@ class SpectralModel:
         return self.residual_and_jacobian(theta)[1]
 
     def residual_and_jacobian(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, jac = self.residual_and_jacobian_lazy(theta)
+        return r, jac()
+
+    def residual_and_jacobian_lazy(self, theta: np.ndarray, first: int = 0
+                                   ) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
+        """The residual at ``theta`` and a function computing the Jacobian's columns ``first:`` there.
+
+        A Levenberg-Marquardt step that is rejected needs no Jacobian, and a fit of the
+        last pole alone needs only its two columns (issue #15): both are asked for only when needed.
+        """
         A, modal, dl = self._columns(theta)
         U, sv, Vt, scale = self._projection(A)
         y = self.P * self.weights
         proj = U.T @ y
-        coef = (Vt.T @ (proj / sv)) / scale
-        # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
-        q = modal @ coef[: modal.shape[1]]
-        J = np.empty((self.f.size, theta.size))
-        for k, g in enumerate(x for pair in dl for x in pair):
-            d = self._reduce((-q * g)[:, None])[:, 0] * self.weights
-            J[:, k] = -(d - U @ (U.T @ d))
-        return y - U @ proj, J
+
+        def jacobian() -> np.ndarray:
+            coef = (Vt.T @ (proj / sv)) / scale
+            # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
+            q = modal @ coef[: modal.shape[1]]
+            G = np.column_stack([x for pair in dl for x in pair][first:])
+            D = self._reduce(-q[:, None] * G) * self.weights[:, None]
+            return -(D - U @ (U.T @ D))
+
+        return y - U @ proj, jacobian
 
 
 def _smooth(P: np.ndarray, width: int = 5) -> np.ndarray:
