@@ -272,6 +272,52 @@ class SpectralModel:
         return y - U @ proj, jacobian
 
 
+    def screen(self, theta: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
+        """:meth:`residual_and_jacobian_lazy` of the poles ``theta`` plus one new pole per row of ``X``
+        (``(ln w, zeta)``), all at once, with the Jacobian along the new pole only.
+
+        Forward selection screens a dozen starts of a new pole with the others held fixed:
+        batched, the per-call overhead of small arrays is paid once (issue #15).  Returns the
+        residuals ``(C, bins)`` and a function giving the Jacobians ``(C, bins, 2)``.
+        """
+        den0, _ = self._denominator(theta)
+        n = theta.size // 2 + 1
+        W2 = self.W2[None, :]
+        w2 = np.exp(2.0 * X[:, 0])[:, None]
+        z = X[:, 1][:, None]
+        re = w2 - W2
+        D2 = re * re + 4.0 * z * z * w2 * W2
+        den = den0[None, :] * (D2 / (w2 * w2))
+        grads = np.stack([(4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2], axis=2)
+        modal = self.cheb[None, :, : 2 * n + 1] * (self.E_parts[0][None, :] / den)[:, :, None]
+        C, k = X.shape[0], modal.shape[2]
+        A = np.concatenate([self._reduce_batch(modal), np.broadcast_to(self.extra, (C,) + self.extra.shape)], axis=2)
+        Aw = A * self.weights[None, :, None]
+        scale = np.linalg.norm(Aw, axis=1)
+        scale[scale == 0] = 1.0
+        U, sv, Vt = np.linalg.svd(Aw / scale[:, None, :], full_matrices=False)
+        keep = sv > 1e-12 * sv[:, :1]
+        U = U * keep[:, None, :]  # the rank-truncated columns
+        y = self.P * self.weights
+        proj = np.einsum("cbk,b->ck", U, y)
+
+        def jacobian() -> np.ndarray:
+            inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
+            coef = np.einsum("ckj,ck->cj", Vt, proj * inv) / scale
+            q = np.einsum("csk,ck->cs", modal, coef[:, :k])
+            D = self._reduce_batch(-q[:, :, None] * grads) * self.weights[None, :, None]
+            return -(D - U @ (U.transpose(0, 2, 1) @ D))
+
+        return y[None, :] - np.einsum("cbk,ck->cb", U, proj), jacobian
+
+    def _reduce_batch(self, A: np.ndarray) -> np.ndarray:
+        """:meth:`_reduce` of a stack ``[C, bins * nsub, k]``."""
+        if self.nsub == 1:
+            return A
+        C, _, k = A.shape
+        return np.einsum("cbsk,s->cbk", A.reshape(C, self.f.size, self.nsub, k), self.kernel_weights)
+
+
 def _smooth(P: np.ndarray, width: int = 5) -> np.ndarray:
     """Running median: a positive reference level for the first weights."""
     if P.size < width:
