@@ -46,7 +46,8 @@ def demo_cpu(src: str | None = None) -> tuple[float, float, dict[str, float]]:
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    sections = {m["what"]: float(m["cpu"]) for m in map(_PROGRESS.match, run.stderr.splitlines()) if m}
+    sections = {("write index.html" if m["what"].startswith("wrote ") else m["what"]): float(m["cpu"])
+                for m in map(_PROGRESS.match, run.stderr.splitlines()) if m}
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), wall, sections
 
 

@@ -106,3 +106,20 @@ def test_spectral_lazy_jacobian_is_the_full_one():
     assert np.max(np.abs(jac() - J[:, 2:])) <= 1e-13 * np.max(np.abs(J))
     r3, jac3 = model.residual_and_jacobian_lazy(SPECTRAL_POLES)  # factors remembered from the first call
     assert np.array_equal(r, r3) and np.max(np.abs(jac3() - J)) <= 1e-13 * np.max(np.abs(J))
+
+
+@pytest.mark.parametrize("n", [40, 300, 2000, 4095])
+def test_whiteness_lags_are_np_correlates(n):
+    """The Ljung-Box statistic's lags as m + 1 dot products: the same numbers as np.correlate's full
+    autocorrelation, bit for bit (which the shortcut replaces below 4096 samples), white or coloured."""
+    from scipy import stats
+
+    from posicast.identification.fit_statistics import whiteness
+
+    rng = np.random.default_rng(n)
+    for e in (rng.standard_normal(n), np.cumsum(rng.standard_normal(n))):
+        c = e - np.mean(e)
+        m = min(20, n // 4)
+        r = np.correlate(c, c, "full")[n - 1:n + m]
+        q = n * (n + 2) * np.sum((r[1:] / r[0]) ** 2 / (n - np.arange(1, m + 1)))
+        assert whiteness(e) == float(stats.chi2.sf(q, m))
