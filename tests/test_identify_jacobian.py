@@ -123,3 +123,19 @@ def test_whiteness_lags_are_np_correlates(n):
         r = np.correlate(c, c, "full")[n - 1:n + m]
         q = n * (n + 2) * np.sum((r[1:] / r[0]) ** 2 / (n - np.arange(1, m + 1)))
         assert whiteness(e) == float(stats.chi2.sf(q, m))
+
+
+def test_special_functions_are_scipy_stats_distributions():
+    """issue #15: the tests and intervals call scipy.special's functions directly; they are what
+    scipy.stats' distributions return (same numbers), on the arguments the fits use."""
+    from scipy import special, stats
+
+    for dof in (1, 2, 5, 37, 398, 1996, 199_990):
+        assert special.stdtrit(dof, 0.975) == stats.t.ppf(0.975, dof)
+        for k in (1, 2, 4):
+            assert special.fdtri(k, dof, 0.999) == stats.f.ppf(0.999, k, dof)
+            for W in (0.0, 0.3, 2.0, 17.0, 400.0):
+                assert special.fdtrc(k, dof, W) == stats.f.sf(W, k, dof)
+    for m in (2, 20):
+        for q in (0.0, 1.5, 19.0, 31.4, 500.0):
+            assert special.chdtrc(m, q) == stats.chi2.sf(q, m)

@@ -7,7 +7,7 @@ import math
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from .. import _validate as v
 from .results import Interval
@@ -59,7 +59,7 @@ def whiteness(e: np.ndarray, lags: int = 20) -> float:
         full = np.correlate(e, e, "full")[n - 1:n + m]
     r = full[1:] / full[0]
     q = n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))
-    return float(stats.chi2.sf(q, m))
+    return float(special.chdtrc(m, q))  # scipy.stats.chi2.sf(q, m), without its argument checks (issue #15)
 
 
 def _acov_fft(e: np.ndarray, m: int) -> np.ndarray:
@@ -101,7 +101,7 @@ def pole_intervals(theta: np.ndarray, J: np.ndarray, e: np.ndarray, n_lin: int,
     else:
         s2 = float(e @ e) / dof
         C = s2 * np.linalg.pinv(J.T @ J)
-    tq = float(stats.t.ppf(0.975, dof))
+    tq = float(special.stdtrit(dof, 0.975))  # scipy.stats.t.ppf(0.975, dof)
     out = []
     for i in range(theta.size // 2):
         lw, z = theta[2 * i], theta[2 * i + 1]
