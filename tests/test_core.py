@@ -254,3 +254,18 @@ def test_ill_posed_operations_are_value_errors_and_zero_divisions():
         one.feedback(1.0, sign="-")
     with pytest.raises(TypeError, match="other"):
         one.feedback("C")
+
+
+def test_horner_is_numpys_polyval_bit_for_bit():
+    """issue #15: the in-place Horner rule gives numpy's polyval exactly (same operations, same order),
+    for real and complex points, one or several polynomials, a constant, integer coefficients and 0-d points."""
+    from numpy.polynomial import polynomial as npP
+
+    from posicast.core.quasipoly import horner
+
+    rng = np.random.default_rng(5)
+    x_c = rng.standard_normal(300) + 1j * rng.standard_normal(300)
+    for c in (rng.standard_normal(7), rng.standard_normal((7, 4)), rng.standard_normal((1, 3)), np.array([3, -2, 1]),
+              rng.standard_normal(5) + 1j * rng.standard_normal(5)):
+        for x in (x_c, np.abs(x_c), np.array(0.7 - 2.0j), x_c.reshape(20, 15)):
+            assert np.array_equal(horner(x, c), npP.polyval(x, c))

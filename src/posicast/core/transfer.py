@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
-from .quasipoly import QuasiPolynomial
+from .quasipoly import QuasiPolynomial, horner
 from .removable import removable_points
 from .verbs import SystemVerbs
 
@@ -217,8 +217,8 @@ class TransferFunction(SystemVerbs):
         k0 = min(kd[0], kn[0]) if kn.size else kd[0]
         cn = cn[k0:]
         cd = cd[k0:]
-        num = np.polynomial.polynomial.polyval(h, cn)
-        den = np.polynomial.polynomial.polyval(h, cd)
+        num = horner(h, cn)
+        den = horner(h, cd)
         with np.errstate(divide="ignore", invalid="ignore"):
             out = num / den
         out[~np.isfinite(out)] = complex(np.inf)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import signal, stats
+from scipy import signal, special
 
 from .. import _validate as v
 from ..modes import Mode
@@ -71,7 +71,7 @@ def fit_arx(u: np.ndarray, y: np.ndarray, sample_rate: float, nk: int = 0) -> Id
         tm[j] -= d
         Jm[:, j] = (np.array(to_mode(*tp)) - np.array(to_mode(*tm))) / (2 * d)
     Cm = Jm @ C[2:, 2:] @ Jm.T
-    tq = float(stats.t.ppf(0.975, dof))
+    tq = float(special.stdtrit(dof, 0.975))  # scipy.stats.t.ppf(0.975, dof)
     sw, sz = math.sqrt(max(Cm[0, 0], 0)), math.sqrt(max(Cm[1, 1], 0))
     iv = Interval((w - tq * sw, w + tq * sw), (max(z - tq * sz, 0.0), z + tq * sz))
     y_hat = signal.lfilter(theta[:2] if nk == 0 else np.r_[np.zeros(nk), theta[:2]], np.r_[1.0, theta[2:]], u)

@@ -7,7 +7,7 @@ import math
 from typing import Callable, NamedTuple
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from .. import _validate as v
 from .results import Interval
@@ -49,10 +49,17 @@ def whiteness(e: np.ndarray, lags: int = 20) -> float:
     if not np.any(e):
         return 1.0  # a zero residual shows no colour
 
-    full = np.correlate(e, e, "full")[n - 1:n + m] if n < 4096 else _acov_fft(e, m)
+    if n >= 4096:
+        full = _acov_fft(e, m)
+    elif n > 256:
+        # the m + 1 lags np.correlate(e, e, "full") gives, one dot product each: the same numbers (the same
+        # dot products), without the 2 n - 1 lags it computes and this drops (O(n m), not O(n^2); issue #15)
+        full = np.array([e @ e] + [e[k:] @ e[:-k] for k in range(1, m + 1)])
+    else:
+        full = np.correlate(e, e, "full")[n - 1:n + m]
     r = full[1:] / full[0]
     q = n * (n + 2) * np.sum(r * r / (n - np.arange(1, m + 1)))
-    return float(stats.chi2.sf(q, m))
+    return float(special.chdtrc(m, q))  # scipy.stats.chi2.sf(q, m), without its argument checks (issue #15)
 
 
 def _acov_fft(e: np.ndarray, m: int) -> np.ndarray:
@@ -94,7 +101,7 @@ def pole_intervals(theta: np.ndarray, J: np.ndarray, e: np.ndarray, n_lin: int,
     else:
         s2 = float(e @ e) / dof
         C = s2 * np.linalg.pinv(J.T @ J)
-    tq = float(stats.t.ppf(0.975, dof))
+    tq = float(special.stdtrit(dof, 0.975))  # scipy.stats.t.ppf(0.975, dof)
     out = []
     for i in range(theta.size // 2):
         lw, z = theta[2 * i], theta[2 * i + 1]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from scipy import optimize, signal, stats
+from scipy import optimize, signal, special
 
 from .. import _validate as v
 from ..modes import Mode
@@ -412,7 +412,7 @@ def _fit_auto_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int
             continue
         rss1 = float(e1 @ e1)
         F = ((rss - rss1) / extra) / max(rss1 / dof, 1e-300)
-        if F > stats.f.ppf(0.999, extra, dof):
+        if F > special.fdtri(extra, dof, 0.999):  # scipy.stats.f.ppf without its argument checks (issue #15)
             chosen[name] = True
     if chosen == base:
         return OEFit(out, rss, k)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 if TYPE_CHECKING:
     from ..modes import Mode
@@ -162,7 +162,7 @@ def wald_test(y: np.ndarray, X: np.ndarray, others: np.ndarray | None, residual:
     dof = max(int(dof), 1)
     s2 = rss / dof
     W = float(fitted @ fitted) / max(s2, 1e-300)
-    p = float(stats.f.sf(W / k, k, dof))
+    p = float(special.fdtrc(k, dof, W / k))  # scipy.stats.f.sf(W / k, k, dof), without its checks (issue #15)
     return _adjust(W, k, p, cells, explained)
 
 

@@ -130,7 +130,7 @@ def _fit(model: SpectralModel, theta0: np.ndarray, iterations: int = 3, rtol: fl
     model.weights = 0.05 / model.floor
 
     def run(x: np.ndarray) -> np.ndarray:
-        return _levenberg_marquardt(model.residual_and_jacobian, x, lo, hi, rtol=rtol)
+        return _levenberg_marquardt(model.residual_and_jacobian_lazy, x, lo, hi, rtol=rtol)
 
     th = run(th)
     M, _ = model.solve(th)
@@ -173,18 +173,22 @@ def _dispersion(model: SpectralModel, M: np.ndarray, n_par: int) -> tuple[float,
     return phi, max(infl, 1.0), r
 
 
-def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], x0: np.ndarray,
-                         lo: np.ndarray, hi: np.ndarray, *, max_iter: int = 60, rtol: float = 1e-9) -> np.ndarray:
+def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, Callable[[], np.ndarray]]],
+                         x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, *, max_iter: int = 60,
+                         rtol: float = 1e-9) -> np.ndarray:
     """Levenberg-Marquardt (Marquardt's diagonal scaling) with steps clipped to the bounds.
 
     A few poles on a few hundred bins: scipy's trust-region reflective solver spent
     most of its time in its own bookkeeping here (60 iterations per fit at 1e-10
-    tolerances); this stops when the cost changes by less than ``rtol``.
+    tolerances); this stops when the cost changes by less than ``rtol``.  ``fun``
+    returns the residual and a function giving the Jacobian, called only at accepted
+    points (issue #15).
     """
     x = np.clip(np.asarray(x0, float), lo, hi)
     if x.size == 0:
         return x
-    r, J = fun(x)
+    r, jac = fun(x)
+    J = jac()
     cost = float(r @ r)
     lam = 1e-3
     for _ in range(max_iter):
@@ -200,7 +204,7 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarra
                 lam *= 10.0
                 continue
             xn = np.clip(x + step, lo, hi)
-            rn, Jn = fun(xn)
+            rn, jac_n = fun(xn)
             cn = float(rn @ rn)
             if cn < cost:
                 improved = True
@@ -209,25 +213,70 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, np.ndarra
         if not improved:
             break
         done = cost - cn <= rtol * cost
-        x, r, J, cost = xn, rn, Jn, cn
-        lam = max(lam / 5.0, 1e-12)
+        x, r, cost = xn, rn, cn
         if done:
             break
+        J = jac_n()
+        lam = max(lam / 5.0, 1e-12)
     return x
 
 
-def _fit_new_pole(model: SpectralModel, theta: np.ndarray, new: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Fit only the new pole, the others fixed (a cheap screen of a candidate)."""
+def _screen_new_pole(model: SpectralModel, theta: np.ndarray, starts: np.ndarray, *, max_iter: int = 15,
+                     rtol: float = 1e-5) -> np.ndarray:
+    """Fit only the new pole from each start (rows ``(ln w, zeta)``), the others fixed: a cheap screen.
+
+    :func:`_levenberg_marquardt`'s steps, run for every start at once (issue #15): each start keeps
+    its own damping ``lam`` and stops on its own test.  Returns the fitted new poles, one row per start.
+    """
     lo, hi = pole_bounds(model, 1)
-    k = theta.size
-
-    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r, J = model.residual_and_jacobian(np.r_[theta, x])
-        return r, J[:, k:]
-
-    x = _levenberg_marquardt(fun, new, lo + 1e-9, hi - 1e-9, max_iter=15, rtol=1e-5)
-    th = np.r_[theta, x]
-    return th, model.solve(th)[0]
+    lo, hi = lo + 1e-9, hi - 1e-9
+    X = np.clip(np.asarray(starts, float), lo, hi)
+    r, jac = model.screen(theta, X)
+    J = jac()
+    cost = np.einsum("cb,cb->c", r, r)
+    lam = np.full(X.shape[0], 1e-3)
+    active = np.ones(X.shape[0], dtype=bool)
+    for _ in range(max_iter):
+        idx = np.flatnonzero(active)
+        if not idx.size:
+            break
+        Ji, ri = J[idx], r[idx]
+        g = np.einsum("cbk,cb->ck", Ji, ri)
+        H = np.einsum("cbk,cbl->ckl", Ji, Ji)
+        d = np.diagonal(H, axis1=1, axis2=2).copy()
+        d[d <= 0] = 1.0
+        pending = np.ones(idx.size, dtype=bool)
+        new_x, new_r, new_c = X[idx].copy(), ri.copy(), cost[idx].copy()
+        for _ in range(12):
+            sel = np.flatnonzero(pending)
+            if not sel.size:
+                break
+            M = H[sel] + lam[idx[sel], None, None] * (d[sel, :, None] * np.eye(2)[None])
+            ok = np.isfinite(np.linalg.det(M)) & (np.abs(np.linalg.det(M)) > 0)
+            lam[idx[sel[~ok]]] *= 10.0  # singular: more damping, as np.linalg.solve's error does
+            sel = sel[ok]
+            if not sel.size:
+                continue
+            step = np.linalg.solve(M[ok], -g[sel][:, :, None])[:, :, 0]
+            xn = np.clip(X[idx[sel]] + step, lo, hi)
+            rn, _ = model.screen(theta, xn)
+            cn = np.einsum("cb,cb->c", rn, rn)
+            better = cn < cost[idx[sel]]
+            hit = sel[better]
+            new_x[hit], new_r[hit], new_c[hit] = xn[better], rn[better], cn[better]
+            pending[hit] = False
+            lam[idx[sel[~better]]] *= 4.0
+        improved = ~pending
+        active[idx[pending]] = False  # no step lowered the cost
+        up = idx[improved]
+        done = cost[up] - new_c[improved] <= rtol * cost[up]
+        X[up], r[up], cost[up] = new_x[improved], new_r[improved], new_c[improved]
+        active[up[done]] = False
+        go = up[~done]
+        lam[go] = np.maximum(lam[go] / 5.0, 1e-12)
+        if go.size:
+            J[go] = model.screen(theta, X[go])[1]()
+    return X
 
 
 def _peaks(model: SpectralModel, k: int, exclude: list[float], M: np.ndarray | None = None) -> list[PeakGuess]:
@@ -320,16 +369,20 @@ def _forward(model: SpectralModel, target: int, progress: Callable[[str], None] 
 def _best_new_pole(model: SpectralModel, theta: np.ndarray, M_cur: np.ndarray) -> np.ndarray | None:
     """The poles ``theta`` plus the best new one screened at the peaks of data / current model (None: no peak)."""
     have = [math.exp(theta[2 * k]) / (2 * math.pi) for k in range(theta.size // 2)]
-    best = None
+    starts = []
     for fp, zp in _peaks(model, 4, have, M_cur):
         # the width guess is poor while the model still lacks the mode: try a ladder of dampings too
-        starts = [zp] + [z for z in (0.005, 0.02, 0.06, 0.2) if not 0.67 < z / zp < 1.5]
-        for z0 in starts:
-            th, _ = _fit_new_pole(model, theta, np.array([math.log(2 * math.pi * fp), z0]))
-            rss = float(np.sum(model.residual(th) ** 2))
-            if best is None or rss < best[0]:
-                best = (rss, th)
-    return None if best is None else best[1]
+        starts += [[math.log(2 * math.pi * fp), z0]
+                   for z0 in [zp] + [z for z in (0.005, 0.02, 0.06, 0.2) if not 0.67 < z / zp < 1.5]]
+    if not starts:
+        return None
+    best = None
+    for x in _screen_new_pole(model, theta, np.array(starts)):
+        th = np.r_[theta, x]
+        rss = float(np.sum(model.residual(th) ** 2))
+        if best is None or rss < best[0]:
+            best = (rss, th)
+    return best[1]
 
 
 def _second_start(model: SpectralModel, th: np.ndarray, M: np.ndarray, rss: float, M0: np.ndarray

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -163,6 +164,7 @@ class SpectralModel:
         self.W2 = (2 * math.pi * ff) ** 2
         extra = [(self.f[0] / ff) ** 2] if self.low else []  # the slow sweep's lines
         self.extra = self._reduce(np.column_stack(extra + [np.ones_like(ff)]) * self.norm_f[:, None])
+        self._factors: dict[tuple[float, float], tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]] = {}
 
     def _reduce(self, A: np.ndarray) -> np.ndarray:
         """Kernel average of sub-point columns ``[bins * nsub, k]`` onto the bins ``[bins, k]``."""
@@ -174,15 +176,29 @@ class SpectralModel:
         """``prod_k |D_k|^2 / w_k^4`` and, per mode, ``d ln(.)/d ln w_k`` and ``d ln(.)/d zeta_k``."""
         den = np.ones_like(self.W2)
         grads = []
-        W2 = self.W2
         for k in range(theta.size // 2):
-            w, z = math.exp(theta[2 * k]), theta[2 * k + 1]
-            w2 = w * w
-            re = w2 - W2
-            D2 = re * re + 4.0 * z * z * w2 * W2
-            den = den * (D2 / (w2 * w2))
-            grads.append(((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
+            factor, grad = self._mode_factor(float(theta[2 * k]), float(theta[2 * k + 1]))
+            den = den * factor
+            grads.append(grad)
         return den, grads
+
+    def _mode_factor(self, log_w: float, z: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """One mode's factor ``|D_k|^2 / w_k^4`` and its two log-gradients, remembered for the last few poles:
+        the forward selection screens a new pole with the others held fixed (issue #15; the same numbers)."""
+        key = (log_w, z)
+        hit = self._factors.get(key)
+        if hit is not None:
+            return hit
+        W2 = self.W2
+        w = math.exp(log_w)
+        w2 = w * w
+        re = w2 - W2
+        D2 = re * re + 4.0 * z * z * w2 * W2
+        out = (D2 / (w2 * w2), ((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
+        if len(self._factors) >= 16:
+            self._factors.pop(next(iter(self._factors)))
+        self._factors[key] = out
+        return out
 
     def columns(self, theta: np.ndarray) -> np.ndarray:
         """``E R(f^2) / prod |D_k|^2`` with ``R`` a polynomial of degree ``2 n`` (Chebyshev basis), ``1/f^2``, 1.
@@ -230,18 +246,76 @@ class SpectralModel:
         return self.residual_and_jacobian(theta)[1]
 
     def residual_and_jacobian(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r, jac = self.residual_and_jacobian_lazy(theta)
+        return r, jac()
+
+    def residual_and_jacobian_lazy(self, theta: np.ndarray, first: int = 0
+                                   ) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
+        """The residual at ``theta`` and a function computing the Jacobian's columns ``first:`` there.
+
+        A Levenberg-Marquardt step that is rejected needs no Jacobian, and a fit of the
+        last pole alone needs only its two columns (issue #15): both are asked for only when needed.
+        """
         A, modal, dl = self._columns(theta)
         U, sv, Vt, scale = self._projection(A)
         y = self.P * self.weights
         proj = U.T @ y
-        coef = (Vt.T @ (proj / sv)) / scale
-        # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
-        q = modal @ coef[: modal.shape[1]]
-        J = np.empty((self.f.size, theta.size))
-        for k, g in enumerate(x for pair in dl for x in pair):
-            d = self._reduce((-q * g)[:, None])[:, 0] * self.weights
-            J[:, k] = -(d - U @ (U.T @ d))
-        return y - U @ proj, J
+
+        def jacobian() -> np.ndarray:
+            coef = (Vt.T @ (proj / sv)) / scale
+            # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
+            q = modal @ coef[: modal.shape[1]]
+            G = np.column_stack([x for pair in dl for x in pair][first:])
+            D = self._reduce(-q[:, None] * G) * self.weights[:, None]
+            return -(D - U @ (U.T @ D))
+
+        return y - U @ proj, jacobian
+
+
+    def screen(self, theta: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
+        """:meth:`residual_and_jacobian_lazy` of the poles ``theta`` plus one new pole per row of ``X``
+        (``(ln w, zeta)``), all at once, with the Jacobian along the new pole only.
+
+        Forward selection screens a dozen starts of a new pole with the others held fixed:
+        batched, the per-call overhead of small arrays is paid once (issue #15).  Returns the
+        residuals ``(C, bins)`` and a function giving the Jacobians ``(C, bins, 2)``.
+        """
+        den0, _ = self._denominator(theta)
+        n = theta.size // 2 + 1
+        W2 = self.W2[None, :]
+        w2 = np.exp(2.0 * X[:, 0])[:, None]
+        z = X[:, 1][:, None]
+        re = w2 - W2
+        D2 = re * re + 4.0 * z * z * w2 * W2
+        den = den0[None, :] * (D2 / (w2 * w2))
+        grads = np.stack([(4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2], axis=2)
+        modal = self.cheb[None, :, : 2 * n + 1] * (self.E_parts[0][None, :] / den)[:, :, None]
+        C, k = X.shape[0], modal.shape[2]
+        A = np.concatenate([self._reduce_batch(modal), np.broadcast_to(self.extra, (C,) + self.extra.shape)], axis=2)
+        Aw = A * self.weights[None, :, None]
+        scale = np.linalg.norm(Aw, axis=1)
+        scale[scale == 0] = 1.0
+        U, sv, Vt = np.linalg.svd(Aw / scale[:, None, :], full_matrices=False)
+        keep = sv > 1e-12 * sv[:, :1]
+        U = U * keep[:, None, :]  # the rank-truncated columns
+        y = self.P * self.weights
+        proj = np.einsum("cbk,b->ck", U, y)
+
+        def jacobian() -> np.ndarray:
+            inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
+            coef = np.einsum("ckj,ck->cj", Vt, proj * inv) / scale
+            q = np.einsum("csk,ck->cs", modal, coef[:, :k])
+            D = self._reduce_batch(-q[:, :, None] * grads) * self.weights[None, :, None]
+            return -(D - U @ (U.transpose(0, 2, 1) @ D))
+
+        return y[None, :] - np.einsum("cbk,ck->cb", U, proj), jacobian
+
+    def _reduce_batch(self, A: np.ndarray) -> np.ndarray:
+        """:meth:`_reduce` of a stack ``[C, bins * nsub, k]``."""
+        if self.nsub == 1:
+            return A
+        C, _, k = A.shape
+        return np.einsum("cbsk,s->cbk", A.reshape(C, self.f.size, self.nsub, k), self.kernel_weights)
 
 
 def _smooth(P: np.ndarray, width: int = 5) -> np.ndarray:

@@ -16,7 +16,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from ..core.quasipoly import QuasiPolynomial
+from ..core.quasipoly import QuasiPolynomial, horner
 from .evaluation import EPS
 
 __all__ = ["PelletDisk", "pellet", "certified_radius", "cluster_rho_max"]
@@ -54,14 +54,14 @@ def _taylor_and_tail(
         pabs = np.zeros(K)
         prow = np.array(row, dtype=float)
         for l in range(min(K, row.size)):
-            pt[l] = P.polyval(c, prow) * inv_fact[l]
-            pabs[l] = P.polyval(abs(c), np.abs(prow)) * inv_fact[l]
+            pt[l] = horner(c, prow) * inv_fact[l]
+            pabs[l] = horner(abs(c), np.abs(prow)) * inv_fact[l]
             prow = P.polyder(prow) if prow.size > 1 else np.zeros(1)
         et = (-tau) ** np.arange(K) * inv_fact
         e0 = np.exp(-c * tau + kappa)
         a += e0 * np.convolve(pt, et)[:K]
         scale += abs(e0) * np.convolve(pabs, np.abs(et))[:K]
-        B += float(P.polyval(abs(c) + R0, np.abs(row))) * math.exp(-(c.real - R0) * tau + kappa)
+        B += float(horner(abs(c) + R0, np.abs(row))) * math.exp(-(c.real - R0) * tau + kappa)
     err = EPS * (8.0 * (order + q.coeffs.size) + 2.0 * abs(c) * tau_max) * scale
     return a, err, np.abs(a), B
 

@@ -16,7 +16,7 @@ import time
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from ..core.quasipoly import QuasiPolynomial
+from ..core.quasipoly import QuasiPolynomial, horner
 from .checks import BudgetExceeded
 
 __all__ = ["EPS", "TWO_PI", "Evaluator", "scaled_eval", "relative_residual"]
@@ -94,8 +94,8 @@ class Evaluator:
         j0 = K + 1 - l  # the tail: k = l + j > K
         for tau, pder, apder, E, aE in rows:
             e0 = np.exp(-c * tau + shift)
-            pl = P.polyval(c, pder) * e0  # (d + 1, n): p^{(l)}(c) / l!, scaled
-            pa = P.polyval(absc, apder) * np.abs(e0)
+            pl = horner(c, pder) * e0  # (d + 1, n): p^{(l)}(c) / l!, scaled
+            pa = horner(absc, apder) * np.abs(e0)
             A += E @ pl
             S += aE @ pa
             if tau > 0:
@@ -136,9 +136,9 @@ class Evaluator:
         s = np.asarray(s, dtype=complex)
         self._charge(s.size)
         e = self._exps(s)
-        polys = P.polyval(s, self.c.T)
+        polys = horner(s, self.c.T)
         val = np.sum(polys * e, axis=0)
-        mag = np.sum(P.polyval(np.abs(s), self.abs_c.T) * np.abs(e), axis=0)
+        mag = np.sum(horner(np.abs(s), self.abs_c.T) * np.abs(e), axis=0)
         return val, mag
 
     def newton_step(
@@ -161,7 +161,7 @@ class Evaluator:
         R = np.maximum(np.abs(za), np.abs(zb))
         a = np.minimum(za.real, zb.real)
         e = np.exp(-np.multiply.outer(self.tau, a) + np.minimum(a, 0.0) * self.tau_max)
-        return np.sum(P.polyval(R, self.deriv_bound_coeffs.T) * e, axis=0)
+        return np.sum(horner(R, self.deriv_bound_coeffs.T) * e, axis=0)
 
 
 def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndarray:
@@ -169,7 +169,7 @@ def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndar
     if q.is_zero:
         return np.zeros(s.shape, dtype=complex)
     e = np.exp(-np.multiply.outer(q.delays, s) + shift)
-    return np.sum(P.polyval(s, q.coeffs.T) * e, axis=0)
+    return np.sum(horner(s, q.coeffs.T) * e, axis=0)
 
 
 def relative_residual(q: QuasiPolynomial, z: np.ndarray) -> np.ndarray:
@@ -180,7 +180,7 @@ def relative_residual(q: QuasiPolynomial, z: np.ndarray) -> np.ndarray:
     tau_max = float(q.delays[-1])
     shift = np.minimum(z.real, 0.0) * tau_max
     e = np.exp(-np.multiply.outer(q.delays, z) + shift)
-    val = np.abs(np.sum(P.polyval(z, q.coeffs.T) * e, axis=0))
-    mag = np.sum(P.polyval(np.abs(z), np.abs(q.coeffs).T) * np.abs(e), axis=0)
+    val = np.abs(np.sum(horner(z, q.coeffs.T) * e, axis=0))
+    mag = np.sum(horner(np.abs(z), np.abs(q.coeffs).T) * np.abs(e), axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(mag > 0, val / mag, val)
