@@ -52,6 +52,7 @@ LAYERS: dict[str, float] = {
     "sweeps": 4.5,  # issue #19: maps the applications over parameter spaces; io and cli may use it
     "io": 5, "testing": 5,
     "cli": 6, "commands": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
+    "serve": 6,  # issue #20: the designer in the browser (posicast serve), beside the command line
 }
 
 # Deprecated aliases: (file, imported module) allowed upward inside the module-level __getattr__ only.

@@ -167,6 +167,11 @@ def _build_parser() -> _Parser:
     q.add_argument("--plot", help="write the Nichols chart with the bounds (png, pdf, svg)")
 
     _add_sweep_parser(sub)
+
+    w = sub.add_parser("serve", help="the interactive designer in the browser (local; needs posicast[serve])")
+    w.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
+    w.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    w.add_argument("--no-browser", action="store_true", help="do not open the page in a browser")
     return parser
 
 
@@ -218,6 +223,7 @@ _COMMANDS = {
     "identify": "identification", "calibrate": "identification",
     "tune": "tuning",
     "qft": "qft", "sweep": "sweep",
+    "serve": "serve",
 }
 
 # Output-path options checked by _run before any subcommand starts work.
