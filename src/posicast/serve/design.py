@@ -102,8 +102,10 @@ class _Designed:
     """The page's design: the continuous shaper and, with a sample rate, its taps."""
 
     def __init__(self, form: Mapping[str, Any]) -> None:
-        kind = v.choice(forms.text_field(form, "kind", "zvd").lower(), "kind", tuple(KINDS))
+        kind = forms.text_field(form, "kind", "zvd").lower()
         self.kind, self.modes = kind, _modes(form)
+        if kind not in KINDS:
+            design(kind, self.modes[0])  # raises the library's message (the kinds it knows)
         self.params = _params(kind, form)
         self.S = _design(kind, self.modes, self.params)
         # an IIR part never ends: its vibration is measured against the unshaped response (analysis.vibration)

@@ -143,7 +143,7 @@ def loop_view(form: Mapping[str, Any]) -> dict[str, Any]:
                     "unstable_roots": [_fmt_root(z) for z in st.unstable_roots]},
         "loop": loop.label, "region": list(region), "poles": _fmt_pairs(poles, 8),
         "n_poles": int(poles.size), "plots": plots, "responses_error": None, "metrics": {}}
-    decay = -float(poles.real.max()) if poles.size else math.nan
+    decay = -float(poles.real.max()) if poles.size else math.nan  # < 0: the loop grows
     t_end = lf.t_end or _auto_t_end(decay, lf)
     try:
         _responses(out, loop, t_end)
@@ -153,8 +153,12 @@ def loop_view(form: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _auto_t_end(decay: float, lf: LoopForm) -> float:
-    """About seven time constants of the slowest pole found (bounded), at least twice the shaper."""
-    t = 7.0 / decay if decay > 0 and math.isfinite(decay) else 20.0 / lf.scale
+    """About seven time constants of the slowest pole found, or ten of the fastest growing one (bounded),
+    at least three times the shaper."""
+    if not math.isfinite(decay) or decay == 0.0:
+        t = 20.0 / lf.scale
+    else:
+        t = 7.0 / decay if decay > 0 else 10.0 / -decay
     if lf.S is not None:
         t = max(t, 3.0 * lf.S.duration)
     return float(min(max(t, 1e-3), 1e4))
@@ -169,6 +173,7 @@ def _responses(out: dict[str, Any], loop: Loop, t_end: float) -> None:
     for name, r in (("step", step), ("load", load)):
         if r.diverged is not None:
             m[f"{name}_diverged"] = f"{r.diverged_signal} diverged at t = {r.diverged:.4g} s"
+    m["step_peak"] = float(np.max(np.abs(step.y)))
     if step.diverged is None:
         m["overshoot_percent"] = float(step.overshoot("y"))  # already in %
         m["settling_time"] = float(step.settling_time("y"))

@@ -99,8 +99,12 @@ def _calibrate_upload(upload: Any, fw_name: str, version: str, axis: str | None,
         path = os.path.join(tmp, _safe_name(name))
         with open(path, "w", encoding="utf-8") as fh:
             fh.write(text)
-        cal = calibrate(path, firmware=[fw_name], klipper_version=version, axis=axis, margin=margin, vtol=vtol,
-                        input=input_col, output=output_col)
+        try:
+            cal = calibrate(path, firmware=[fw_name], klipper_version=version, axis=axis, margin=margin, vtol=vtol,
+                            input=input_col, output=output_col)
+        except (ValueError, TypeError) as exc:  # the library's message, about the user's file, not the copy
+            exc.args = tuple(a.replace(path, name) if isinstance(a, str) else a for a in exc.args)
+            raise
     for fr in cal.files:  # the temporary directory means nothing to the user
         fr.path = name
     return cal
