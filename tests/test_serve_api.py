@@ -359,3 +359,17 @@ def test_posicast_serve_serves_the_page():
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_readme_example():
+    """README "Designer in the browser" runs as printed (its Python block is a doctest)."""
+    import doctest
+
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("### Designer in the browser"):]
+    start = section.index("```python") + len("```python")
+    block = section[start:section.index("```", start)]
+    test = doctest.DocTestParser().get_doctest(block, {}, "README serve", "README.md", 0)
+    runner = doctest.DocTestRunner()
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries >= 5

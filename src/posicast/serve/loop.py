@@ -133,7 +133,8 @@ def loop_view(form: Mapping[str, Any]) -> dict[str, Any]:
     with svg_figure(plots, "spectrum", width=4.4, height=4.4) as (fig, ax):
         spectrum_plot(loop, region, ax=ax)
         if poles.size and lf.region_text.lower() in ("", "auto"):  # zoom on the poles found (the search stays)
-            ax.set_xlim(1.25 * min(float(poles.real.min()), -0.05 * lf.scale), region[1])
+            lo = 1.25 * min(float(poles.real.min()), -0.05 * lf.scale)
+            ax.set_xlim(lo, min(region[1], max(-0.15 * lo, 1.25 * float(poles.real.max()))))
         ax.set_xlabel("Re s [1/s]")
         ax.set_ylabel("Im s [rad/s]")
         ax.set_title("closed-loop poles and shaper zeros")
