@@ -345,15 +345,22 @@ def test_posicast_serve_without_the_extra_names_the_pip_line(monkeypatch, capsys
     assert capsys.readouterr().err.strip() == "posicast: error: --port must be an integer in [0, 65535], got 70000"
 
 
-def test_posicast_serve_serves_the_page():
-    """The real command in a subprocess: it prints its address and answers there."""
+@pytest.mark.parametrize("as_json", [False, True])
+def test_posicast_serve_serves_the_page(as_json):
+    """The real command in a subprocess: it prints its address (a sentence, or JSON) and answers there."""
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    proc = subprocess.Popen([sys.executable, "-m", "posicast", "serve", "--port", "0", "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    cmd = [sys.executable, "-m", "posicast", "serve", "--port", "0", "--no-browser"] + (["--json"] if as_json else [])
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         line = proc.stdout.readline().strip()  # blocks until the server listens
-        assert line.startswith("posicast designer at http://localhost:") and line.endswith("(Ctrl-C stops it)")
-        url = line.split()[3]
+        if as_json:
+            info = json.loads(line)
+            assert set(info) == {"url", "host", "port", "pid"} and info["pid"] == proc.pid
+            assert info["host"] == "127.0.0.1" and info["url"] == f"http://localhost:{info['port']}/"
+            url = info["url"]
+        else:
+            assert line.startswith("posicast designer at http://localhost:") and line.endswith("(Ctrl-C stops it)")
+            url = line.split()[3]
         with urllib.request.urlopen(url, timeout=30) as resp:
             assert resp.status == 200 and b'id="tab-machine"' in resp.read()
     finally:

@@ -172,6 +172,7 @@ def _build_parser() -> _Parser:
     w.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
     w.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
     w.add_argument("--no-browser", action="store_true", help="do not open the page in a browser")
+    w.add_argument("--json", action="store_true", help="print the address as JSON once listening (for scripts)")
     return parser
 
 

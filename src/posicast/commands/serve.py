@@ -20,5 +20,5 @@ def run(args: argparse.Namespace) -> int:
     port = v.integer_in_range(args.port, "--port", 0, 65535)
     if not args.host.strip():
         raise ValueError("--host must not be empty")
-    serve(args.host, port, open_browser=not args.no_browser)
+    serve(args.host, port, open_browser=not args.no_browser, json_line=args.json)
     return 0

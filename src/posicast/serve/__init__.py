@@ -14,6 +14,8 @@ this module imports neither until :func:`serve` runs.
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
 import threading
 import webbrowser
 
@@ -32,7 +34,7 @@ def missing_requirements() -> list[str]:
     return [name for name in REQUIREMENTS if importlib.util.find_spec(name) is None]
 
 
-def serve(host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True) -> None:
+def serve(host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True, json_line: bool = False) -> None:
     """Run the designer at ``http://host:port/`` until interrupted (Ctrl-C).
 
     Parameters
@@ -43,6 +45,9 @@ def serve(host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True) 
         TCP port, 0 for any free one.
     open_browser : bool
         Open the page in the default browser once the server listens.
+    json_line : bool
+        Announce the address as one JSON line ``{"url", "host", "port", "pid"}`` instead of a sentence
+        (a script that started the designer on port 0 reads where it listens).
     """
     import uvicorn  # the optional extra: imported only when the designer runs
 
@@ -58,7 +63,10 @@ def serve(host: str = "127.0.0.1", port: int = 8765, open_browser: bool = True) 
             threading.Event().wait(0.05)
         sock = server.servers[0].sockets[0].getsockname() if server.servers else (host, port)
         url = f"http://{'localhost' if host in ('127.0.0.1', '0.0.0.0') else host}:{sock[1]}/"
-        print(f"posicast designer at {url} (Ctrl-C stops it)", flush=True)
+        if json_line:
+            print(json.dumps({"url": url, "host": host, "port": sock[1], "pid": os.getpid()}), flush=True)
+        else:
+            print(f"posicast designer at {url} (Ctrl-C stops it)", flush=True)
         if open_browser:
             webbrowser.open(url)
 
