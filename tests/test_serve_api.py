@@ -112,6 +112,16 @@ def test_machine_raw_accelerometer_log(client, tmp_path):
     assert out["files"][0]["modes"][0]["freq_hz"] == pytest.approx(42.0, rel=0.02)  # the simulated mode
 
 
+def test_machine_several_files_are_calibrated_together(client):
+    x, y = (ROOT / "tests" / "data" / "real" / f"bassco_v0_resonances_{a}_20220703.csv" for a in "xy")
+    body = {"files": [{"name": p.name, "text": p.read_text()} for p in (x, y)]}
+    out = client.post("/api/machine", json=body).json()
+    cal = pc.calibrate([str(x), str(y)])
+    assert out["config"] == "\n".join(cal.config) and "shaper_type_x" in out["config"] and "shaper_type_y" in out["config"]
+    assert [f["name"] for f in out["files"]] == [x.name, y.name] and [f["axis"] for f in out["files"]] == ["x", "y"]
+    assert [r["axis"] for r in out["recommendations"]] == ["x", "y"]
+
+
 def test_machine_typed_modes_are_scored_over_their_boxes(client):
     out = client.post("/api/machine", json={"modes": "45 0.05\n90 0.03", "margin": "0.1", "axis": "y"}).json()
     modes = [pc.Mode.from_hz(45, 0.05), pc.Mode.from_hz(90, 0.03)]
@@ -143,6 +153,9 @@ def test_machine_hostile_inputs_answer_400_with_the_message(client, tmp_path):
         _raised(pc.calibrate, str(PSD), margin=0.7)
     assert _error(client.post("/api/machine", json={"file": {"name": "a.csv", "text": 3}})) == \
         "file text must be a string, got int"
+    assert _error(client.post("/api/machine", json={"files": []})) == "files must have at least 1 entry, got 0"
+    many = [{"name": f"f{k}_x.csv", "text": "1"} for k in range(17)]
+    assert _error(client.post("/api/machine", json={"files": many})) == "files: at most 16 files at once, got 17"
 
 
 def test_machine_no_resonance_is_a_message(client, tmp_path):

@@ -30,19 +30,22 @@ from ..modes import Mode
 from . import forms
 from .figures import COLOURS, svg_figure
 
-__all__ = ["FIRMWARE_CHOICES", "MAX_UPLOAD", "machine_view"]
+__all__ = ["FIRMWARE_CHOICES", "MAX_FILES", "MAX_UPLOAD", "machine_view"]
 
 #: The page's firmware menu: its value -> (posicast firmware name, Klipper version).
 FIRMWARE_CHOICES: dict[str, tuple[str, str]] = {
     "klipper": ("klipper", "v0.13"), "klipper-master": ("klipper", "master"), "kalico": ("klipper", "kalico"),
     "reprapfirmware": ("reprapfirmware", "v0.13"), "marlin": ("marlin", "v0.13"), "prusa": ("prusa", "v0.13"),
 }
-#: Largest file the page may send (characters): an hour-long raw log at 3.2 kHz is about 100 MB.
+#: Most characters the page may send (all files together): an hour-long raw log at 3.2 kHz is about 100 MB.
 MAX_UPLOAD = 200_000_000
+#: Most files at once (probe points, print masses, axes).
+MAX_FILES = 16
 
 
 def machine_view(form: Mapping[str, Any]) -> dict[str, Any]:
-    """Calibrate the uploaded file (``form["file"] = {"name", "text"}``) or the typed ``form["modes"]``.
+    """Calibrate the uploaded files (``form["files"] = [{"name", "text"}, ...]``, or one ``form["file"]``)
+    together, as ``posicast calibrate FILE...`` does, or score the typed ``form["modes"]``.
 
     Other fields: ``firmware`` (a key of :data:`FIRMWARE_CHOICES`), ``axis`` (``x``, ``y``, ``z`` or
     empty), ``margin`` (frequency drift, default 0.05), ``vtol`` (optional worst-case target),
@@ -57,9 +60,8 @@ def machine_view(form: Mapping[str, Any]) -> dict[str, Any]:
     vtol = forms.optional_number(form, "vtol")
     if vtol is not None:
         vtol = v.in_open_interval(vtol, "vtol", 0.0, 1.0)
-    upload = form.get("file")
-    if upload:
-        cal = _calibrate_upload(upload, fw_name, version, axis, margin, vtol,
+    if form.get("files") is not None or form.get("file"):
+        cal = _calibrate_upload(_uploads(form), fw_name, version, axis, margin, vtol,
                                 forms.text_field(form, "input") or None, forms.text_field(form, "output") or None)
         return _calibration_view(cal)
     modes = forms.mode_lines(forms.text_field(form, "modes"))
@@ -83,31 +85,59 @@ def _safe_name(name: str) -> str:
     return base if base.lower().endswith(".csv") else base + ".csv"
 
 
-def _calibrate_upload(upload: Any, fw_name: str, version: str, axis: str | None, margin: float,
+def _uploads(form: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(name, text)`` of each uploaded file: ``form["files"]`` (a list) or ``form["file"]``."""
+    items = form.get("files")
+    if items is None:
+        items = [form["file"]]
+    items = v.sequence(items, "files", min_len=1)
+    if len(items) > MAX_FILES:
+        raise ValueError(f"files: at most {MAX_FILES} files at once, got {len(items)}")
+    out, total = [], 0
+    for upload in items:
+        if not isinstance(upload, Mapping):
+            raise TypeError("file must be an object with 'name' and 'text'")
+        name = forms.text_field(upload, "name", "upload.csv")
+        text = upload.get("text")
+        if not isinstance(text, str):
+            raise TypeError(f"file text must be a string, got {type(text).__name__}")
+        if not text.strip():
+            raise ValueError(f"{name}: the file is empty")
+        total += len(text)
+        if total > MAX_UPLOAD:
+            raise ValueError(f"{name}: the files have more than {MAX_UPLOAD} characters, the most the designer reads")
+        out.append((name, text))
+    return out
+
+
+def _calibrate_upload(uploads: list[tuple[str, str]], fw_name: str, version: str, axis: str | None, margin: float,
                       vtol: float | None, input_col: str | None, output_col: str | None) -> Calibration:
-    if not isinstance(upload, Mapping):
-        raise TypeError("file must be an object with 'name' and 'text'")
-    name = forms.text_field(upload, "name", "upload.csv")
-    text = upload.get("text")
-    if not isinstance(text, str):
-        raise TypeError(f"file text must be a string, got {type(text).__name__}")
-    if not text.strip():
-        raise ValueError(f"{name}: the file is empty")
-    if len(text) > MAX_UPLOAD:
-        raise ValueError(f"{name}: the file has {len(text)} characters; the designer reads at most {MAX_UPLOAD}")
+    """:func:`posicast.calibrate` of the uploaded files (copied to a temporary directory under their own
+    names: the axis is read from the name)."""
     with tempfile.TemporaryDirectory(prefix="posicast-serve-") as tmp:
-        path = os.path.join(tmp, _safe_name(name))
-        with open(path, "w", encoding="utf-8") as fh:
-            fh.write(text)
+        paths: dict[str, str] = {}
+        for k, (name, text) in enumerate(uploads):
+            safe = _safe_name(name)
+            path = os.path.join(tmp, safe if not os.path.exists(os.path.join(tmp, safe)) else f"{k}_{safe}")
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(text)
+            paths[path] = name
         try:
-            cal = calibrate(path, firmware=[fw_name], klipper_version=version, axis=axis, margin=margin, vtol=vtol,
-                            input=input_col, output=output_col)
-        except (ValueError, TypeError) as exc:  # the library's message, about the user's file, not the copy
-            exc.args = tuple(a.replace(path, name) if isinstance(a, str) else a for a in exc.args)
+            cal = calibrate(list(paths), firmware=[fw_name], klipper_version=version, axis=axis, margin=margin,
+                            vtol=vtol, input=input_col, output=output_col)
+        except (ValueError, TypeError) as exc:  # the library's message, about the user's files, not the copies
+            exc.args = tuple(_user_names(a, paths) if isinstance(a, str) else a for a in exc.args)
             raise
-    for fr in cal.files:  # the temporary directory means nothing to the user
-        fr.path = name
+    for fr in cal.files:
+        fr.path = paths.get(fr.path, fr.path)
+    cal.notes = [_user_names(n, paths) for n in cal.notes]
     return cal
+
+
+def _user_names(text: str, paths: Mapping[str, str]) -> str:
+    for path, name in paths.items():
+        text = text.replace(path, name).replace(os.path.basename(path), name)
+    return text
 
 
 def _num(x: Any) -> float | None:

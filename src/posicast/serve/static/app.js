@@ -75,7 +75,7 @@ function machineFields() {
     input: val("m-input"), output: val("m-output") };
 }
 
-let lastFile = null;
+let lastFiles = null;
 
 async function machineRun(body) {
   const r = await post("m", "/api/machine", body);
@@ -112,30 +112,36 @@ async function machineRun(body) {
   $("m-cand-plot").innerHTML = r.plots.candidates || "";
 }
 
-function machineFile(file) {
-  const reader = new FileReader();
-  reader.onload = () => {
-    lastFile = { name: file.name, text: reader.result };
-    machineRun({ ...machineFields(), file: lastFile });
-  };
-  reader.onerror = () => status("m", "could not read " + file.name, "error");
-  status("m", "reading " + file.name + "…", "working");
-  reader.readAsText(file);
+function readText(file) {
+  return new Promise((resolve, reject) => {
+    const reader = new FileReader();
+    reader.onload = () => resolve({ name: file.name, text: reader.result });
+    reader.onerror = () => reject(new Error("could not read " + file.name));
+    reader.readAsText(file);
+  });
+}
+
+async function machineFiles(fileList) {
+  const files = [...fileList];
+  status("m", `reading ${files.map((f) => f.name).join(", ")}…`, "working");
+  try { lastFiles = await Promise.all(files.map(readText)); }
+  catch (e) { status("m", e.message, "error"); return; }
+  machineRun({ ...machineFields(), files: lastFiles });
 }
 
 function machineInit() {
-  $("m-file").addEventListener("change", (e) => { if (e.target.files.length) machineFile(e.target.files[0]); });
+  $("m-file").addEventListener("change", (e) => { if (e.target.files.length) machineFiles(e.target.files); });
   const drop = $("m-drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
   drop.addEventListener("dragleave", () => drop.classList.remove("over"));
   drop.addEventListener("drop", (e) => {
     e.preventDefault(); drop.classList.remove("over");
-    if (e.dataTransfer.files.length) machineFile(e.dataTransfer.files[0]);
+    if (e.dataTransfer.files.length) machineFiles(e.dataTransfer.files);
   });
-  $("m-run-modes").addEventListener("click", () => { lastFile = null; machineRun({ ...machineFields(), modes: $("m-modes").value }); });
+  $("m-run-modes").addEventListener("click", () => { lastFiles = null; machineRun({ ...machineFields(), modes: $("m-modes").value }); });
   for (const id of ["m-firmware", "m-axis", "m-margin", "m-vtol"]) {
     $(id).addEventListener("change", () => {
-      if (lastFile) machineRun({ ...machineFields(), file: lastFile });
+      if (lastFiles) machineRun({ ...machineFields(), files: lastFiles });
       else if ($("m-config").value) machineRun({ ...machineFields(), modes: $("m-modes").value });
     });
   }
