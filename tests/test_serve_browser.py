@@ -134,6 +134,12 @@ def test_design_tab_slider_updates_the_impulses_to_the_library_design(page):
     assert [int(r[0]) for r in taps] == [round(t * 1000) for t in Z.impulses[0]]
     assert [float(r[2]) for r in taps] == pytest.approx(Z.impulses[1].tolist(), rel=1e-5)
     _shot(page, "design")
+    # the export button downloads posicast.export_shaper's C header of those taps
+    page.fill("#d-name", "x_axis")
+    with page.expect_download() as dl:
+        page.click("#d-export")
+    assert dl.value.suggested_filename == "x_axis.h"
+    assert Path(dl.value.path()).read_text() == pc.export_shaper(Z, 1000.0, "c", name="x_axis")
     # a bad input (damping >= 1) shows the library's one-line message, and the table stays
     page.fill("#d-zeta-num", "1.2")
     page.wait_for_selector("#d-status.error")  # after the debounce
