@@ -285,6 +285,14 @@ def test_loop_verdict_is_the_certified_library_verdict(client, c_num, arch, tau)
         assert "step_diverged" in out["metrics"] or out["metrics"]["step_peak"] > 1e3
 
 
+def test_loop_with_an_iir_shaper_simulates_over_the_loop_time_scale(client):
+    """A notch lasts forever (duration inf): the horizon follows the closed-loop poles, not the shaper."""
+    out = client.post("/api/loop", json={**LOOP, "G_delay": "0", "shaper": "notch"}).json()
+    poles = pc.poles(pc.control_action(G=([1], [1, 1, 0]), C=([2.05, 5], [0.01, 1]), F=([157.9137], [1, 1.256637,
+                     157.9137]), S=pc.design("notch", pc.Mode.from_hz(2.0, 0.05))), out["region"]).roots
+    assert out["metrics"]["t_end"] == pytest.approx(7.0 / -poles.real.max(), rel=1e-9)
+
+
 def test_loop_improper_controller_keeps_the_verdict_and_says_why_no_response(client):
     out = client.post("/api/loop", json={**LOOP, "C_num": "2 5", "C_den": "1", "G_delay": "0"}).json()  # pure PD
     _, G, F, S = _lib_loop(tau=0.0)

@@ -160,7 +160,7 @@ def _auto_t_end(decay: float, lf: LoopForm) -> float:
         t = 20.0 / lf.scale
     else:
         t = 7.0 / decay if decay > 0 else 10.0 / -decay
-    if lf.S is not None:
+    if lf.S is not None and math.isfinite(lf.S.duration):  # an IIR shaper (notch) lasts forever
         t = max(t, 3.0 * lf.S.duration)
     return float(min(max(t, 1e-3), 1e4))
 
