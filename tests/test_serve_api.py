@@ -220,6 +220,10 @@ def test_design_hostile_inputs_answer_400_with_the_message(client):
     assert _error(_design(client, "ei", sample_rate="10")) == \
         _raised(discretize, pc.design("ei", pc.Mode.from_hz(40.0, 0.05)), 10.0)
     assert _error(_design(client, modes=())) == "modes must have at least 1 entry, got 0"
+    span = pc.design("dtazv", pc.Mode.from_hz(40.0, 0.05)).duration * 1e8
+    assert _error(_design(client, "dtazv", sample_rate="1e8")) == (
+        f"sample_rate 1e+08 Hz spreads the dtazv shaper over {span:.3g} samples; the designer handles at most 1e+06 "
+        "(lower the sample rate)")
     nan_json = '{"kind": "zv", "modes": [{"freq_hz": NaN, "zeta": 0}]}'  # Python's json reads NaN
     assert _error(client.post("/api/design", content=nan_json, headers={"content-type": "application/json"})) == \
         "freq_hz must be finite, got nan"

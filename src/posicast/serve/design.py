@@ -28,10 +28,12 @@ from ..simulation.streaming import discretize
 from . import forms
 from .figures import COLOURS, svg_figure
 
-__all__ = ["MAX_IMPULSES", "MAX_ROWS", "kinds_view", "design_view", "export_view"]
+__all__ = ["MAX_IMPULSES", "MAX_ROWS", "MAX_SPAN", "kinds_view", "design_view", "export_view"]
 
 #: Most impulses a design typed into the page may have (``k``, ``n``, ``n m``); the library allows 1e5.
 MAX_IMPULSES = 2000
+#: Most samples a discretised shaper may span (duration x sample rate).
+MAX_SPAN = 1e6
 #: Rows of a table sent to the page (the export holds every tap).
 MAX_ROWS = 400
 _INTEGER_PARAMS = ("k", "n", "m", "max_impulses")
@@ -133,13 +135,19 @@ def _taps(d: _Designed) -> dict[str, Any]:
         w = A
         iir = False
     else:
+        span = d.S.duration * fs
+        if span > MAX_SPAN:
+            raise ValueError(f"sample_rate {fs:g} Hz spreads the {d.S.name} shaper over {span:.3g} samples; "
+                             f"the designer handles at most {MAX_SPAN:g} (lower the sample rate)")
         D = discretize(d.S, fs)
         idx = np.flatnonzero(D.taps)
         w = D.taps[idx]
         iir = D.b is not None
     rows = [[int(i), float(i) / fs, float(x)] for i, x in zip(idx[:MAX_ROWS], w[:MAX_ROWS])]
-    vib = [float(residual_vibration(d.sampled if d.sampled is not None else _discrete_shaper(idx, w, fs, d),
-                                    m.omega, m.zeta)) for m in d.modes] if not iir else []
+    vib: list[float] = []
+    if not iir and idx.size <= MAX_IMPULSES:  # a dense kernel's thousands of taps: the table says enough
+        taps = d.sampled if d.sampled is not None else _discrete_shaper(idx, w, fs, d)
+        vib = [float(residual_vibration(taps, m.omega, m.zeta)) for m in d.modes]
     return {"sample_rate": fs, "method": d.method, "rows": rows, "n_taps": int(idx.size),
             "more": max(0, int(idx.size) - MAX_ROWS), "sum": float(np.sum(w)), "iir": iir,
             "residual_vibration": vib}
