@@ -8,20 +8,30 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BENCH_STAMP := $(VENV)/.bench-installed
 
-.PHONY: demo test bench clean venv
+.PHONY: demo test bench clean venv chromium
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,serve]'
 	touch $(STAMP)
 
 demo: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m posicast_reports.demo --out report
 
-test: $(STAMP)
+# The designer's browser test (tests/test_serve_browser.py) drives Debian's Chromium through the
+# playwright package; it fails, never skips, without it, so the test target installs it when missing.
+CHROMIUM ?= /usr/bin/chromium
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+
+chromium:
+	@test -x $(CHROMIUM) || { $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	  $(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; }
+	@test -x $(CHROMIUM) || { echo "chromium is not at $(CHROMIUM) (needed by tests/test_serve_browser.py)"; exit 1; }
+
+test: $(STAMP) chromium
 	MPLBACKEND=Agg $(PY) -m pytest
 
 $(BENCH_STAMP): $(STAMP) pyproject.toml

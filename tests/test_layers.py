@@ -53,6 +53,7 @@ LAYERS: dict[str, float] = {
     "io": 5, "testing": 5,
     "cli": 6, "commands": 6, "__main__": 6, "": 6,  # "": posicast/__init__.py, the façade
     "report": 6,  # issue #20: the user-first report (posicast report DATA) uses every application, like the CLI
+    "serve": 6,  # issue #20: the designer in the browser (posicast serve), beside the command line
 }
 
 # Deprecated aliases: (file, imported module) allowed upward inside the module-level __getattr__ only.

@@ -97,7 +97,14 @@ def _add_param_args(p: argparse.ArgumentParser) -> None:
 
 
 def _build_parser() -> _Parser:
-    parser = _Parser(prog="posicast", description="Time-delay signal shapers for flexible machines.")
+    parser = _Parser(
+        prog="posicast", description="Time-delay signal shapers for flexible machines.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="start here:\n"
+               "  posicast report resonances_x_*.csv   your resonance test -> modes, shaper, firmware lines (HTML)\n"
+               "  posicast report plant.json           your plant -> certified stability, tuned loop (HTML)\n"
+               "  posicast serve                       the designer in the browser (machine, design, loop)\n"
+               "every subcommand: posicast SUBCOMMAND --help; --json prints one JSON document")
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
 
@@ -206,13 +213,19 @@ def _build_parser() -> _Parser:
     _add_stability_parser(sub)
     _add_simulate_parser(sub)
 
-    r = sub.add_parser("report", help="an HTML report for your resonance test(s) or plant file (issue #20)")
+    r = sub.add_parser("report", help="an HTML report for your resonance test(s) or plant file")
     r.add_argument("data", nargs="+", metavar="DATA",
                    help="Klipper raw logs or PSD files (what 'calibrate' reads), or one plant file (.json, see README)")
     r.add_argument("--out", dest="out_dir", metavar="DIR", default="report", help="output folder (default: report)")
     r.add_argument("--firmware", default="klipper", help="for logs: as for 'calibrate' (default klipper)")
     r.add_argument("--axis", choices=("x", "y", "z"), help="for logs: the tested axis when the file names do not say")
     _add_output_args(r, progress=True)
+
+    w = sub.add_parser("serve", help="the interactive designer in the browser (local; needs posicast[serve])")
+    w.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
+    w.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
+    w.add_argument("--no-browser", action="store_true", help="do not open the page in a browser")
+    w.add_argument("--json", action="store_true", help="print the address as JSON once listening (for scripts)")
     return parser
 
 
@@ -328,6 +341,7 @@ _COMMANDS = {
     "stability": "stability",
     "simulate": "simulate",
     "report": "report",
+    "serve": "serve",
 }
 
 # Output-path options checked by _run before any subcommand starts work.
