@@ -114,3 +114,21 @@ def test_readme_window_example():
     runner = doctest.DocTestRunner()
     runner.run(test)
     assert runner.failures == 0 and runner.tries >= 5
+
+
+def test_dead_time_with_a_derivative_filter_gives_a_verified_design():
+    """A fresh line at the best line's kd that finds no stable admissible piece used to reach the controller
+    as kp = -inf ("num must be finite"; found through posicast serve's loop tab). The design now comes from
+    the next best lines and is checked here independently: Ms on a dense grid and the certified spectrum."""
+    G = posicast.TransferFunction.from_poly([1.0], [1.0, 1.0, 0.0], delay=0.02)
+    S = posicast.design("zvd", posicast.Mode.from_hz(2.0, 0.05))
+    F = posicast.TransferFunction.from_poly([157.9137], [1.0, 1.256637, 157.9137])
+    r = posicast.tune_pd(G, S, "control_action", ms=2.0, F=F, derivative_filter=0.01)
+    assert r.stable and np.isfinite([r.kp, r.kd]).all() and r.kp > 0 and r.kd > 0
+    w = np.linspace(1e-3, 200.0, 200_001)
+    L = r.controller(1j * w) * G(1j * w) * S(1j * w)
+    assert np.max(1.0 / np.abs(1.0 + L)) <= 2.0 * (1 + 1e-6)
+    assert posicast.stability(posicast.control_action(G=G, C=r.controller, S=S)).stable
+    # the design is close to the one without the filter (kp 5.15, kd 2.88), not a degenerate corner
+    free = posicast.tune_pd(G, S, "control_action", ms=2.0, F=F)
+    assert 0.8 * free.kp < r.kp <= free.kp * 1.05

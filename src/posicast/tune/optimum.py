@@ -177,7 +177,8 @@ def _candidates(problem: Problem, region: Region, i: int) -> Iterator[tuple[floa
     y_best, end, bottom = _probe_top(problem, region, i, x_best)
     if end is not None and not isinstance(end, Cut):
         x_best, y_best, end = exact_optimum(problem, region, i, x_best, y_best, bottom, end)
-    yield x_best, y_best, end, bottom
+    if math.isfinite(y_best):  # -inf: the fresh line found no stable admissible piece there
+        yield x_best, y_best, end, bottom
     tops = np.array([region.top(k) for k in range(region.x.size)])
     for k in [int(k) for k in np.argsort(-tops) if np.isfinite(tops[k]) and int(k) != i][:8]:
         x = float(region.x[k])
