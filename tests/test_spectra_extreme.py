@@ -116,3 +116,42 @@ def test_shaper_loop_with_tiny_gain_is_stable():
     assert st.stable
     r = pc.rightmost(L, 1)[0]
     assert r == pytest.approx(-1e-300, rel=1e-9)  # h(0) = 1e-300 S(0), h'(0) = 1, S(0) = 1
+
+
+# ------------------------------------------------------------------ rightmost: fewer roots than asked for
+def _crane_pd_loop(kd: float, S=None):
+    crane = pc.cases.ALL["gantry_crane"]
+    C = pc.TransferFunction.from_poly(np.polyadd([0.01, 1.0], [kd, 0.0]), [0.01, 1.0])  # kp = 1, filter 0.01
+    return pc.control_action(G=crane.G, F=crane.F, C=C, S=S)
+
+
+def test_rightmost_of_a_polynomial_loop_returns_every_root():
+    """The crane with a PD of kd = 4.6e16 (no shaper): a degree-10 polynomial.  rightmost(30) gives its ten
+    roots, numpy's eigenvalue roots of the characteristic (before: nine, the tenth at -5e5 beyond the
+    twelve steps of the search line)."""
+    L = _crane_pd_loop(4.6e16)
+    q = L.characteristic
+    ref = np.roots(q.coeffs[0, ::-1])
+    got = pc.rightmost(L, 30)
+    assert got.size == 10
+    for z in ref:
+        assert np.min(np.abs(got - z)) <= 1e-8 * max(1.0, abs(z))
+    np.testing.assert_allclose(pc.rightmost(L, 2).real, np.sort(ref.real)[::-1][:2], rtol=1e-9)
+
+
+def test_rightmost_of_a_shaped_loop_with_huge_gain_refused_up_front():
+    """The same loop with its DeZV shaper: roots to |s| ~ 4e5 with chains 7 apart (before: 24 s, then refused)."""
+    crane = pc.cases.ALL["gantry_crane"]
+    L = _crane_pd_loop(4.6e16, pc.design("dezv", crane.mode))
+    with pytest.raises(BudgetExceeded, match="certified search needs about"):
+        pc.rightmost(L, 2)
+
+
+def test_rightmost_says_when_the_search_line_stopped():
+    """s + 1000 e^{-s} has infinitely many roots, 318 right of the axis; with one step of the search line
+    (Re s >= 0) only those are found: a warning says so, and the roots are the Lambert W branches."""
+    q = QuasiPolynomial([[0.0, 1.0], [1000.0, 0.0]], [0.0, 1.0])
+    with pytest.warns(UserWarning, match="318 of the 400 .*max_alpha_steps"):
+        got = pc.rightmost(q, 400, max_alpha_steps=1)
+    assert got.size == 318
+    assert abs(got[0] - _lambert(1000.0, 0)) <= 1e-12 * abs(got[0])

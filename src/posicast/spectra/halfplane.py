@@ -84,7 +84,7 @@ def _staircase(
     with delays, a grid step of a sixth of the chains' spacing, so a strip's grid alone can need
     billions of points; without this check the strips before it were searched first (tens of seconds)."""
     strips = []
-    lo, width, Rlo = alpha, 1.0, R
+    lo, width, Rlo = alpha, max(1.0, 1e-9 * abs(alpha)), R  # far out, a unit width would not advance lo
     while True:
         if Rlo < lo or (Rlo == 0.0 and lo > 0.0):
             break  # |s| <= R(lo) < lo <= Re s is impossible: nothing further right (R = 0 leaves s = 0)
