@@ -155,3 +155,22 @@ def test_rightmost_says_when_the_search_line_stopped():
         got = pc.rightmost(q, 400, max_alpha_steps=1)
     assert got.size == 318
     assert abs(got[0] - _lambert(1000.0, 0)) <= 1e-12 * abs(got[0])
+
+
+# ------------------------------------------------------------------ found by the fuzz pass
+def test_root_cluster_near_zero_ends_in_a_named_error_not_a_budget_run():
+    """An 11th-order plant with poles at |s| ~ 0.0094, a PD of kd = 7.7e7 and a DZV shaper: the
+    characteristic's coefficients span 1e-23..0.6 and its roots next to the removable s = 0 cannot be
+    separated.  Each reconciliation level halved the grid step while the part shrank only to ~60 %,
+    so the grid grew 4x a level (3438 x 3039 nodes by level 10; minutes).  Now the split localises
+    and the search stops at its depth limit with the reason, after a few thousand evaluations a level."""
+    den = np.array([1.0])
+    wn, zeta = 0.00943, 0.728
+    for _ in range(5):
+        den = np.polymul(den, [1.0, 2 * zeta * wn, wn * wn])
+    den = np.polymul(den, [1.0, wn])
+    G = pc.as_transfer(([10.0 * wn**11], den)) * pc.delay(2.46)
+    C = pc.TransferFunction.from_poly(np.polyadd([0.01, 1.0], [7.69e7, 0.0]), [0.01, 1.0])
+    L = pc.control_action(G=G, C=C, S=pc.design("dzv", pc.Mode(10.0, 0.767)))
+    with pytest.raises(pc.spectra.RootFindingError, match="could not isolate"):
+        pc.roots(L.characteristic, (-10.0, 1.0, 0.0, 50.0), max_evaluations=2e6, timeout=1e4)
