@@ -19,12 +19,15 @@ import numpy as np
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from .bounds import sharp_bound
-from .checks import RootFindingError, prepared
+from .checks import BudgetExceeded, RootFindingError, prepared
 from .difference import DifferenceSpectrum, difference_spectrum
 from .disks import certified_radius
 from .halfplane import root_radii, search_right_of
 
 __all__ = ["rightmost", "SpectralAbscissa", "spectral_abscissa"]
+
+
+_NEUTRAL_WORK = 2e6  # evaluations a search line next to neutral chains may cost (about half a second)
 
 
 def _check_radius(max_radius: Any) -> float:
@@ -106,7 +109,7 @@ def _rightmost_all(
     # a polynomial's roots all lie in |s| <= its Fujiwara bound: one search right of -bound has them all
     # (before, roots far left or n > degree stepped the line max_alpha_steps times and returned fewer)
     poly_bound = _polynomial_bound(q) if q.is_polynomial else math.inf
-    alpha = 0.0 if floor < 0 else floor + 1.0
+    alpha = start = 0.0 if floor < 0 else floor + 1.0
     step = 1.0
     found = np.zeros(0, complex)
     for _ in range(max_alpha_steps):
@@ -114,7 +117,18 @@ def _rightmost_all(
         if math.isfinite(floor) and R > max_radius:
             return found, (f"the roots further left crowd the neutral chains near Re s = C_D = {floor:.4g}, where "
                            f"the root bound passes max_radius={max_radius:g} (see difference_spectrum)")
-        got = search_right_of(q, alpha, ignore, bound=bound)
+        if math.isfinite(floor) and alpha < start:
+            # next to the chains each step costs about twice the last, mostly in reconciling roots
+            # crowding the search line (an inverse ZV of an undamped mode: 13 s for nothing before
+            # this budget); a line that needs more stops the search with the reason
+            try:
+                got = search_right_of(q, alpha, ignore, {"max_evaluations": _NEUTRAL_WORK}, bound=bound)
+            except BudgetExceeded:
+                return found, (f"the search line Re s = {alpha:.4g} is so close to the neutral chains "
+                               f"(C_D = {floor:.4g}) that its search needs more than {_NEUTRAL_WORK:.0e} "
+                               "evaluations (see difference_spectrum)")
+        else:
+            got = search_right_of(q, alpha, ignore, bound=bound)
         if got is not None:
             found = got
             if found.size >= n:

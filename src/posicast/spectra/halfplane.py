@@ -76,6 +76,17 @@ def search_right_of(
 
 
 
+def _grid_sizes(q: QuasiPolynomial, strips: list[tuple[float, float, float]]) -> list[float]:
+    """The candidate grid's nodes in each strip ``(lo, hi, R(lo))`` (the first pass of each search)."""
+    sizes = []
+    for lo, hi, Rlo in strips:
+        pad = 1e-3 * max(1.0, Rlo)
+        rect = (lo, hi, -pad, Rlo + pad)
+        nx, ny = grid_shape(rect, grid_step(q, rect))
+        sizes.append(float(nx) * float(ny))
+    return sizes
+
+
 def _staircase(
     q: QuasiPolynomial, alpha: float, R: float, bound: Callable[[float], float], budget: dict | None
 ) -> list[tuple[float, float, float]]:
@@ -96,12 +107,7 @@ def _staircase(
         Rlo = bound(lo)
     max_evaluations = float((budget or {}).get("max_evaluations", 5e7))
     limit = min(max_evaluations / 2, MAX_GRID)
-    sizes = []
-    for lo, hi, Rlo in strips:
-        pad = 1e-3 * max(1.0, Rlo)
-        rect = (lo, hi, -pad, Rlo + pad)
-        nx, ny = grid_shape(rect, grid_step(q, rect))
-        sizes.append(float(nx) * float(ny))
+    sizes = _grid_sizes(q, strips)
     worst = int(np.argmax(sizes)) if sizes else 0
     if sizes and sizes[worst] > limit:  # the same limit as each search's own (rootfinder._check_grid)
         lo, hi, Rlo = strips[worst]
