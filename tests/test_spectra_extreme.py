@@ -174,3 +174,23 @@ def test_root_cluster_near_zero_ends_in_a_named_error_not_a_budget_run():
     L = pc.control_action(G=G, C=C, S=pc.design("dzv", pc.Mode(10.0, 0.767)))
     with pytest.raises(pc.spectra.RootFindingError, match="could not isolate"):
         pc.roots(L.characteristic, (-10.0, 1.0, 0.0, 50.0), max_evaluations=2e6, timeout=1e4)
+
+
+def test_difference_spectrum_with_delays_of_thousands_of_seconds():
+    """An inverse ZVD for a 0.0023 rad/s mode (delays 2027 and 4055 s): the Hale abscissa's bracket started
+    at a = -1, where exp(2027) overflowed (a RuntimeWarning, an error under the suite's filter).  Closed
+    forms: with x = e^{-2027.46 a}, the Hale abscissa solves |d1| x + |d2| x^2 = 1; C_D comes from the
+    roots z of 1 + d1 z + d2 z^2 (z = e^{-2027.46 s}), Re s = -ln|z| / 2027.46."""
+    S = pc.design("zvd", pc.Mode(0.0023, 0.739))
+    G = pc.as_transfer(([0.243**6], np.polymul(np.polymul([1, 0, 0.243**2], [1, 0, 0.243**2]), [1, 0, 0.243**2])))
+    L = pc.inverse_shaper(G=G, C=([0.0023], [1.0]), S=S)
+    ds = pc.spectra.difference_spectrum(L.characteristic)
+    D = ds.operator
+    d1, d2 = D.coeffs[1, 0] / D.coeffs[0, 0], D.coeffs[2, 0] / D.coeffs[0, 0]
+    T = float(D.delays[1])
+    x = max(np.roots([abs(d2), abs(d1), -1.0]).real)
+    assert ds.hale_abscissa == pytest.approx(-np.log(x) / T, rel=1e-9)
+    z = np.roots([d2, d1, 1.0])
+    assert ds.abscissa == pytest.approx(max(-np.log(np.abs(z)) / T), rel=1e-6)
+    assert ds.strongly_stable
+    assert not pc.stability(L).stable  # the undamped plant modes: roots right of the axis
