@@ -7,6 +7,8 @@ are well conditioned, and the Lambert W branches for ``s + a e^{-s}`` (``s = W_k
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy.special import lambertw
@@ -194,3 +196,22 @@ def test_difference_spectrum_with_delays_of_thousands_of_seconds():
     assert ds.abscissa == pytest.approx(max(-np.log(np.abs(z)) / T), rel=1e-6)
     assert ds.strongly_stable
     assert not pc.stability(L).stable  # the undamped plant modes: roots right of the axis
+
+
+def test_simulate_an_eleventh_order_plant_at_a_thousandth_of_a_rad_per_s():
+    """The plant's companion matrix spans 1e-3..1e-33: scipy's balancing warned (a RuntimeWarning, an error
+    under the suite's filter).  Independent number: for wn t << 1 the plant is K wn^11 / s^11, the loop gain
+    is 4e-13 (no feedback to speak of) and only the ZVD's first impulse A0 has acted by t = 5 s (the second
+    comes at pi / omega_d = 3.65 s and adds (1.35 s)^11 / 11!, a millionth), so y(5) = kp K wn^11 A0 5^11 / 11!."""
+    wn, zeta, K, kp = 0.0011, 0.27, 3.81e-10, 0.0011
+    den = np.array([1.0])
+    for _ in range(5):
+        den = np.polymul(den, [1.0, 2 * zeta * wn, wn * wn])
+    den = np.polymul(den, [1.0, wn])
+    S = pc.design("zvd", pc.Mode(1.0, 0.508))
+    L = pc.control_action(G=([K * wn**11], den), C=([kp], [1.0]), S=S)
+    t = np.linspace(0.0, 5.0, 501)
+    r = pc.simulate(L, t, w=np.ones_like(t), sample_rate=100.0)
+    A0 = S.impulses[1][0]
+    expected = kp * K * wn**11 * A0 * 5.0**11 / math.factorial(11)
+    assert np.asarray(r.y)[-1] == pytest.approx(expected, rel=1e-2)
