@@ -215,3 +215,18 @@ def test_simulate_an_eleventh_order_plant_at_a_thousandth_of_a_rad_per_s():
     A0 = S.impulses[1][0]
     expected = kp * K * wn**11 * A0 * 5.0**11 / math.factorial(11)
     assert np.asarray(r.y)[-1] == pytest.approx(expected, rel=1e-2)
+
+
+def test_readme_example():
+    """README "Extreme gains and scales" runs as printed (the block is a doctest)."""
+    import doctest
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("*Extreme gains and scales*"):]
+    start = section.index("```python") + len("```python")
+    block = section[start: section.index("```", start)]
+    test = doctest.DocTestParser().get_doctest(block, {}, "README extreme", "README.md", 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    assert runner.failures == 0 and runner.tries == 4
