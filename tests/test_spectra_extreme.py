@@ -230,3 +230,24 @@ def test_readme_example():
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     runner.run(test)
     assert runner.failures == 0 and runner.tries == 4
+
+
+def test_cli_stability_with_a_huge_derivative_gain(capsys):
+    """`posicast stability --case gantry_crane --kp 1 --kd 4.6e16 ...` (refused by the CLI's gain range before):
+    the rightmost root is the characteristic polynomial's (numpy's eigenvalue roots); with the case's DeZV
+    shaper the search is refused at once with its estimate, one line, exit 2."""
+    import json
+
+    from posicast.cli import main
+
+    argv = ["stability", "--case", "gantry_crane", "--kp", "1", "--kd", "4.6e16", "--derivative-filter", "0.01",
+            "--roots", "2", "--quiet"]
+    assert main([*argv, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    q = _crane_pd_loop(4.6e16).characteristic
+    ref = np.roots(q.coeffs[0, ::-1])
+    assert data["stable"] is False
+    assert data["spectral_abscissa"]["value"] == pytest.approx(float(np.max(ref.real)), rel=1e-9)
+    assert main([*argv, "--shaper", "dezv"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("posicast: error:") and "certified search needs about" in err[0]
