@@ -82,7 +82,7 @@ def normalised(q: QuasiPolynomial) -> QuasiPolynomial:
     if nz.size == 0:
         return q
     e = math.frexp(float(nz.max()))[1]
-    if float(nz.min()) * 2.0 ** (-e) < 1e-305:
+    if math.ldexp(float(nz.min()), -e) < 1e-305:  # <= the largest, scaled below 1: no overflow
         raise ValueError(
             f"h's coefficients span {float(nz.max()):.3g} / {float(nz.min()):.3g} = more than 1e305: "
             "they cannot be held in one float scale (rescale the gains or the time unit)"
