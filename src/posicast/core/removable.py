@@ -31,7 +31,11 @@ def vanishing_order(h: QuasiPolynomial, s0: complex, max_order: int = 24) -> int
     """
     if h.is_zero:
         return max_order
-    c, scale = h.taylor(s0, max_order)
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            c, scale = h.taylor(s0, max_order)
+    except ValueError:  # |s0| so large that the Taylor terms overflow (a loop with a gain of 1e300):
+        return 0  # the point is not shown to vanish, so it stays a root (never hidden)
     k = 0
     while k <= max_order and abs(c[k]) <= _VANISH_RTOL * scale[k]:
         k += 1

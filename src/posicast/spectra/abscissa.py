@@ -11,6 +11,7 @@ certified disks about the rightmost roots (:func:`~posicast.spectra.disks.certif
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any, Callable
 
 import numpy as np
@@ -18,12 +19,15 @@ import numpy as np
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from .bounds import sharp_bound
-from .checks import RootFindingError, prepared
+from .checks import BudgetExceeded, RootFindingError, prepared
 from .difference import DifferenceSpectrum, difference_spectrum
 from .disks import certified_radius
 from .halfplane import root_radii, search_right_of
 
 __all__ = ["rightmost", "SpectralAbscissa", "spectral_abscissa"]
+
+
+_NEUTRAL_WORK = 2e6  # evaluations a search line next to neutral chains may cost (about half a second)
 
 
 def _check_radius(max_radius: Any) -> float:
@@ -85,39 +89,77 @@ def rightmost(
     if isinstance(max_alpha_steps, (bool, np.bool_)) or not isinstance(max_alpha_steps, (int, np.integer)) \
             or not 1 <= max_alpha_steps <= 200:
         raise ValueError(f"max_alpha_steps must be an integer in [1, 200], got {max_alpha_steps!r}")
-    return _rightmost_all(q, int(n), ignore, int(max_alpha_steps), _check_radius(max_radius))[:n]
+    found, short = _rightmost_all(q, int(n), ignore, int(max_alpha_steps), _check_radius(max_radius))
+    if found.size < n and short:
+        warnings.warn(f"rightmost: {found.size} of the {n} roots asked for: {short}", UserWarning, stacklevel=2)
+    return found[:n]
 
 
-def _rightmost_all(q: QuasiPolynomial, n: int, ignore: Any, max_alpha_steps: int, max_radius: float) -> np.ndarray:
-    """Every root right of the last search line (at least ``n`` of them when it could get there)."""
+def _rightmost_all(
+    q: QuasiPolynomial, n: int, ignore: Any, max_alpha_steps: int, max_radius: float
+) -> tuple[np.ndarray, str]:
+    """Every root right of the last search line (at least ``n`` of them when it could get there), and
+    why there are fewer ('' when there are no more roots: a polynomial searched to its Fujiwara bound)."""
     floor = -math.inf
     ds = None
     if q.kind == "neutral":
         ds = difference_spectrum(q)
         floor = ds.abscissa if ds.commensurate else ds.hale_abscissa
     bound = sharp_bound(q, ds)
-    alpha = 0.0 if floor < 0 else floor + 1.0
+    # a polynomial's roots all lie in |s| <= its Fujiwara bound: one search right of -bound has them all
+    # (before, roots far left or n > degree stepped the line max_alpha_steps times and returned fewer)
+    poly_bound = _polynomial_bound(q) if q.is_polynomial else math.inf
+    alpha = start = 0.0 if floor < 0 else floor + 1.0
     step = 1.0
     found = np.zeros(0, complex)
     for _ in range(max_alpha_steps):
         R = bound(alpha)
         if math.isfinite(floor) and R > max_radius:
-            break  # too close to the neutral chains' line for a search within max_radius
-        got = search_right_of(q, alpha, ignore, bound=bound)
+            return found, (f"the roots further left crowd the neutral chains near Re s = C_D = {floor:.4g}, where "
+                           f"the root bound passes max_radius={max_radius:g} (see difference_spectrum)")
+        if math.isfinite(floor) and alpha < start:
+            # next to the chains each step costs about twice the last, mostly in reconciling roots
+            # crowding the search line (an inverse ZV of an undamped mode: 13 s for nothing before
+            # this budget); a line that needs more stops the search with the reason
+            try:
+                got = search_right_of(q, alpha, ignore, {"max_evaluations": _NEUTRAL_WORK}, bound=bound)
+            except BudgetExceeded:
+                return found, (f"the search line Re s = {alpha:.4g} is so close to the neutral chains "
+                               f"(C_D = {floor:.4g}) that its search needs more than {_NEUTRAL_WORK:.0e} "
+                               "evaluations (see difference_spectrum)")
+        else:
+            got = search_right_of(q, alpha, ignore, bound=bound)
         if got is not None:
             found = got
             if found.size >= n:
-                return found
+                return found, ""
+        if alpha <= -poly_bound:
+            return found, ""  # every root of the polynomial
         if math.isfinite(floor) and alpha - step <= floor:
             if alpha <= floor + 1e-3 * max(1.0, abs(floor)):
-                break
+                return found, (f"the search line reached the neutral chains' abscissa C_D = {floor:.4g}, which "
+                               "infinitely many roots approach (see difference_spectrum)")
             alpha = floor + 0.5 * (alpha - floor)
             continue
         # an irrational fraction keeps the search lines off round numbers, where multiple roots
         # of designed quasi-polynomials (multiplicity-induced dominancy) like to sit
-        alpha -= step * 1.0731
+        alpha = -poly_bound if math.isfinite(poly_bound) else alpha - step * 1.0731
         step *= 2.0
-    return found
+    return found, (f"the search line stopped at Re s = {alpha:.4g} after max_alpha_steps={max_alpha_steps} "
+                   "steps (each twice as far left); raise max_alpha_steps for more")
+
+
+def _polynomial_bound(q: QuasiPolynomial) -> float:
+    """Fujiwara's bound ``2 max_k |c_{n-k} / c_n|^(1/k)`` (the last term halved): every root of the
+    polynomial ``q`` has a smaller modulus (with a little margin)."""
+    c = q.coeffs[0]
+    n = int(np.max(np.nonzero(c)[0])) if np.any(c) else 0
+    if n == 0:
+        return 0.0
+    k = np.arange(1, n + 1)
+    ratios = np.abs(c[n - k]) / abs(c[n])
+    ratios[-1] /= 2.0
+    return 2.0 * float(np.max(ratios ** (1.0 / k))) * (1.0 + 1e-6) + 1e-6
 
 
 class SpectralAbscissa(float):
@@ -259,7 +301,7 @@ def spectral_abscissa(h: Any, *, ignore: Any = None, max_radius: float = 2e4) ->
                     best = a
                 break
         return best
-    r = _rightmost_all(q, 1, ignore, 40, max_radius)
+    r, _ = _rightmost_all(q, 1, ignore, 40, max_radius)
     if r.size == 0:
         return SpectralAbscissa(-math.inf, 0.0, "none")
     return _abscissa_of_roots(q, r)

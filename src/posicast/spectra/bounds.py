@@ -76,9 +76,14 @@ def bound_from_gamma(q: QuasiPolynomial, alpha: float, gamma: float) -> float:
     r = np.roots(desc)
     pos = r[(np.abs(r.imag) <= 1e-9 * np.maximum(1.0, np.abs(r))) & (r.real > 0)].real
     R = float(pos.max()) if pos.size else 0.0
-    # guard the root against rounding: step out until the bound holds
-    f = lambda x: gamma * x**n - float(np.polyval(beta[::-1], x))  # noqa: E731
-    while f(R) <= 0:
+    # guard the root against rounding: step out until the bound holds.  The test is divided by
+    # x^n (gamma > sum_j beta_j x^(j-n)), so a huge R (a gain of 1e300) does not overflow x**n.
+    k = np.arange(n)
+
+    def holds(x: float) -> bool:
+        return x > 0 and gamma > float(np.sum(beta * np.exp((k - n) * math.log(x))))
+
+    while not holds(R):
         R = R * (1 + 1e-9) + 1e-12
     return R
 

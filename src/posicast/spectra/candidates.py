@@ -13,7 +13,8 @@ import math
 import numpy as np
 
 from ..core.quasipoly import QuasiPolynomial
-from .evaluation import EPS, TWO_PI, Evaluator
+from .checks import BudgetExceeded
+from .evaluation import EPS, TWO_PI, Evaluator, relative_residual
 
 __all__ = ["grid_step", "grid_shape", "grid_candidates", "newton"]
 
@@ -29,6 +30,13 @@ def grid_step(q: QuasiPolynomial, rect: tuple[float, float, float, float]) -> fl
     return step
 
 
+MAX_GRID = 2e7  # grid points held at once (complex: 320 MB)
+
+
+def _fmt_rect(rect: tuple[float, float, float, float]) -> str:
+    return "(" + ", ".join(f"{float(x):.6g}" for x in rect) + ")"
+
+
 def grid_shape(rect: tuple[float, float, float, float], step: float) -> tuple[int, int]:
     """Grid nodes ``(nx, ny)`` of ``rect`` at ``step``."""
     # at least 5 nodes a side: a thin rectangle gets elongated cells, not a finer grid
@@ -41,6 +49,14 @@ def grid_candidates(ev: Evaluator, rect: tuple[float, float, float, float], step
     """Centres of the grid cells around which ``h`` winds, and grid nodes where ``h`` is exactly 0."""
     a, b, c, d = rect
     nx, ny = grid_shape(rect, step)
+    # refused before it is allocated: a refinement halves the step, so a large region's grid grows 4x a level
+    left = ev.budget - ev.evaluations
+    if nx * ny > min(left, MAX_GRID):
+        raise BudgetExceeded(
+            f"the search of {_fmt_rect(rect)} needs a {nx * ny:.3g}-point grid (step {step:.3g}), over the "
+            f"{min(left, MAX_GRID):.3g} evaluations left of max_evaluations={ev.budget:.3g} (at most {MAX_GRID:.0e} "
+            "held at once); shrink the region or raise max_evaluations"
+        )
     x = np.linspace(a, b, nx)
     y = np.linspace(c, d, ny)
     S = x[None, :] + 1j * y[:, None]
@@ -93,4 +109,15 @@ def newton(
         ok = np.isfinite(st) & (np.abs(st) <= 1e-9 * np.maximum(np.abs(za), 1.0))
         idx = np.flatnonzero(active)
         conv[idx[ok]] = True
+    # A root next to s = 0 much closer than 1 (-1e-300 for a loop with a gain of 1e-300) passes the
+    # absolute test above one step early, at a point where h is all rounding: one more step, kept
+    # where it lowers the relative residual.
+    small = conv & (np.abs(z) < 1e-3)
+    if np.any(small):
+        zs = z[small]
+        st = ev.newton_step(zs, q, dq)
+        zn = zs - np.where(np.isfinite(st), st, 0.0)
+        qq = ev.q if q is None else q
+        better = relative_residual(qq, zn) < relative_residual(qq, zs)
+        z[np.flatnonzero(small)[better]] = zn[better]
     return z, conv

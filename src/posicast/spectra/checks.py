@@ -27,6 +27,8 @@ __all__ = [
     "check_budget",
     "check_ignore",
     "check_range",
+    "normalised",
+    "usable_radius",
 ]
 
 
@@ -59,8 +61,7 @@ def as_quasipolynomial(h: Any, name: str = "h") -> QuasiPolynomial:
 def prepared(h: Any) -> QuasiPolynomial:
     """``h`` as a quasi-polynomial with its smallest delay factored out; an advanced one is refused
     (it has roots of arbitrarily large real part: no stability analysis applies)."""
-    q = as_quasipolynomial(h)
-    q, _ = q.factor_min_delay()
+    q = normalised(as_quasipolynomial(h).factor_min_delay()[0])
     kind = q.kind
     if kind == "advanced":
         raise ValueError(
@@ -68,6 +69,35 @@ def prepared(h: Any) -> QuasiPolynomial:
             "it has roots of arbitrarily large real part; no stability analysis applies"
         )
     return q
+
+
+def normalised(q: QuasiPolynomial) -> QuasiPolynomial:
+    """``q`` times a power of two that brings its largest coefficient to ``[0.5, 1)``: the same roots.
+
+    The power of two is exact, so no coefficient is rounded; gains of 1e-300 or 1e300 in a loop
+    then cost nothing in range.  Coefficients spanning more than the float range (a nonzero one
+    would come within a thousand of the smallest normal float, ~1e-308, relative to the largest) are refused.
+    """
+    nz = np.abs(q.coeffs[q.coeffs != 0])
+    if nz.size == 0:
+        return q
+    e = math.frexp(float(nz.max()))[1]
+    if math.ldexp(float(nz.min()), -e) < 1e-305:  # <= the largest, scaled below 1: no overflow
+        raise ValueError(
+            f"h's coefficients span {float(nz.max()):.3g} / {float(nz.min()):.3g} = more than 1e305: "
+            "they cannot be held in one float scale (rescale the gains or the time unit)"
+        )
+    if e == 0:
+        return q
+    return QuasiPolynomial(np.ldexp(q.coeffs, -e), q.delays)
+
+
+def usable_radius(q: QuasiPolynomial) -> float:
+    """The largest ``|s|`` where every ``|c_j| |s|^(j+1)`` stays below 1e250 (see :func:`check_range`)."""
+    nz = np.abs(q.coeffs) > 0
+    j = np.nonzero(nz)[1]
+    logc = np.log10(np.abs(q.coeffs[nz]))
+    return float(np.min(10.0 ** np.minimum((250.0 - logc) / (j + 1), 300.0)))
 
 
 def check_region(region: Any) -> tuple[float, float, float, float]:
@@ -120,7 +150,7 @@ def check_range(q: QuasiPolynomial, rect: tuple[float, float, float, float]) -> 
     logmag = float(np.max(np.log10(np.abs(q.coeffs[nz])) + (j + 1) * math.log10(R)))
     if logmag > 250.0:
         deg = int(j.max())
-        lim = 10 ** ((250.0 - float(np.max(np.log10(np.abs(q.coeffs[nz]))))) / (deg + 1))
+        lim = usable_radius(q)
         raise ValueError(
             f"region {rect} reaches |s| = {R:.3g}, where the degree-{deg} terms of h grow to about 1e{logmag:.0f} "
             f"and leave the float range; keep the region within |s| < {lim:.3g}"

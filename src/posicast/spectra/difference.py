@@ -99,7 +99,10 @@ def difference_spectrum(h: Any) -> DifferenceSpectrum:
     theta = D.delays[1:]
     total = float(np.sum(np.abs(d)))
     g = lambda a: float(np.sum(np.abs(d) * np.exp(-a * theta))) - 1.0  # noqa: E731
-    lo, hi = -1.0, 1.0
+    # start at |a theta| = 1: with delays of thousands of seconds (a shaper for a 0.002 rad/s mode) a = -1
+    # overflowed exp; doubling from here meets g >= 0 before a theta passes ~700 (|d| >= 1e-305)
+    unit = min(1.0, 1.0 / float(theta.max()))
+    lo, hi = -unit, unit
     while g(lo) < 0:
         lo *= 2
     while g(hi) > 0:
@@ -119,13 +122,14 @@ def difference_spectrum(h: Any) -> DifferenceSpectrum:
         return DifferenceSpectrum(D, CD, bool(total < 1.0), hale, True, np.sort_complex(s))
     # incommensurate delays: scan a wide strip (C_D is a supremum; this is an estimate from below)
     theta_max = float(theta.max())
-    lo_re = hale - 1.0
+    unit = min(1.0, 1.0 / theta_max)  # e^{-a theta_max} grows at most e-fold a step (no overflow)
+    lo_re = hale - unit
     dl = np.abs(d)
     # left edge: where the largest delay term dominates, no roots
     j = int(np.argmax(theta))
     others = lambda a: 1.0 + float(np.sum(np.delete(dl, j) * np.exp(-a * np.delete(theta, j))))  # noqa: E731
     while dl[j] * math.exp(-lo_re * theta_max) <= others(lo_re):
-        lo_re -= 1.0
+        lo_re -= unit
     Y = 100 * 2 * math.pi / float(theta.min())
     r = roots(D, (lo_re, hale + 1e-3 * max(1.0, abs(hale)), 0.0, Y))
     CD = float(r.roots.real.max()) if r.count else -math.inf

@@ -136,16 +136,20 @@ def certified_radius(q: QuasiPolynomial, c: complex, m: int, rho_max: float, ord
     if not lead > 0:
         return None
     # no radius below the one where a lower term equals the m-th can pass
-    est = max([((absa[k] + err[k]) / lead) ** (1.0 / (m - k)) for k in range(m)] + [1e-16 * rho_max])
+    # (the floor is far below the rounding level only for a root next to s = 0, e.g. -1e-300 of a
+    # loop with a gain of 1e-300, which is then certified left of the axis)
+    est = max([((absa[k] + err[k]) / lead) ** (1.0 / (m - k)) for k in range(m)] + [1e-300 * rho_max])
     if est > rho_max:
         return None
     k = np.arange(order + 1)
     n = int(math.floor(4.0 * math.log2(rho_max / est))) + 1
-    rho = est * 2.0 ** (np.arange(min(n, 400)) / 4.0)  # steps of 2^(1/4)
+    # steps of 2^(1/4) (coarser when they would be more than 400)
+    rho = est * 2.0 ** (np.arange(n) / 4.0) if n <= 400 else np.geomspace(est, rho_max, 400)
     x = rho / R0
     tail = B * x ** (order + 1) / (1.0 - x)
-    terms = (absa + err)[None, :] * rho[:, None] ** k[None, :]
-    ok = lead * rho**m > np.sum(terms, axis=1) - terms[:, m] + tail
+    with np.errstate(over="ignore", invalid="ignore"):
+        terms = (absa + err)[None, :] * rho[:, None] ** k[None, :]
+        ok = lead * rho**m > np.sum(terms, axis=1) - terms[:, m] + tail
     return float(rho[np.argmax(ok)]) if np.any(ok) else None
 
 

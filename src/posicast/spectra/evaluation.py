@@ -105,7 +105,9 @@ class Evaluator:
                 tail += np.sum(pa * rho[None, :] ** (l - 1) * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
         k = np.arange(1, K + 1)[:, None]
         err = self.round_factor(absc + rho) * (1.0 + K) * S[1:]
-        return np.sum(k * (np.abs(A[1:]) + err) * rho[None, :] ** (k - 1), axis=0) + tail
+        with np.errstate(over="ignore", invalid="ignore"):  # past the float range: no bound (inf)
+            out = np.sum(k * (np.abs(A[1:]) + err) * rho[None, :] ** (k - 1), axis=0) + tail
+        return np.where(np.isnan(out), np.inf, out)
 
     def round_factor(self, r: np.ndarray | float) -> np.ndarray | float:
         """Bound of the relative rounding error of a scaled evaluation at ``|s| = r``.

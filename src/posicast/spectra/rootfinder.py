@@ -60,7 +60,7 @@ import numpy as np
 
 from ..core.quasipoly import QuasiPolynomial
 from .argument_principle import count_with_shifts
-from .candidates import grid_shape, grid_step, newton
+from .candidates import MAX_GRID, grid_shape, grid_step, newton
 from .checks import (
     BudgetExceeded,
     RootFindingError,
@@ -69,6 +69,7 @@ from .checks import (
     check_ignore,
     check_range,
     check_region,
+    normalised,
 )
 from .disks import certified_radius
 from .evaluation import Evaluator, relative_residual
@@ -87,7 +88,7 @@ __all__ = [
     "certified_radius",
 ]
 
-_MAX_GRID = 2e7  # grid points held at once (complex: 320 MB)
+_MAX_GRID = MAX_GRID  # grid points held at once (complex: 320 MB)
 
 
 @dataclass(frozen=True)
@@ -212,7 +213,7 @@ def roots(
     rect = check_region(region)
     max_evaluations, timeout = check_budget(max_evaluations, timeout)
     ign = None if ignore is None else check_ignore(ignore)
-    q, _ = q0.factor_min_delay()
+    q = normalised(q0.factor_min_delay()[0])
     check_range(q, rect)
     ev = Evaluator(q, int(max_evaluations), time.monotonic() + float(timeout))
     step = grid_step(q, rect)
