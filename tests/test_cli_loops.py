@@ -92,6 +92,28 @@ def test_simulate_reads_a_reference_file(tmp_path, capsys):
     assert data["step_response"] == {}  # no step: no step metrics
 
 
+def test_step_metrics_skip_a_swing_that_returns_to_zero(capsys):
+    """The crane's sway y = F z has F(0) = 0 (seed 001 eq. 11): no overshoot for it, even when a sampled run
+    ends mid-swing with y away from 0 (here y(20 s) = 0.019 after a load step, which read as a 5600 % overshoot of a 0.019 move).
+    The hoist z (DC gain 1) keeps its metrics, equal to the response's own."""
+    import numpy as np
+
+    import posicast as pc
+
+    argv = ["simulate", "--case", "gantry_crane", "--kp", "30", "--kd", "1", "--derivative-filter", "0.01",
+            "--shaper", "dezv", "--t-end", "20", "--sample-rate", "100", "--disturbance", "10", "0.1", "--json"]
+    assert main(argv) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert abs(data["final"]["y"]) > 0.01  # the run ends mid-swing: the last sample alone would count it
+    assert set(data["step_response"]) == {"z"}
+    crane = pc.cases.ALL["gantry_crane"]
+    C = pc.TransferFunction.from_poly([1.0 + 30.0 * 0.01, 30.0], [0.01, 1.0])  # 30 + s / (0.01 s + 1)
+    loop = pc.control_action(G=crane.G, F=crane.F, C=C, S=pc.design("dezv", crane.mode))
+    t = np.arange(2001) * 0.01
+    r = pc.simulate(loop, t, w=np.ones_like(t), d=0.1 * (t >= 10), sample_rate=100.0, outputs=("z",))
+    assert data["step_response"]["z"]["overshoot_percent"] == pytest.approx(r.overshoot("z", start=0.0), rel=1e-9)
+
+
 def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):
     with working("long work", delay=0.0):
         time.sleep(0.8)

@@ -56,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
         write_atomic(csv_path, args.out, "--out", lambda fh: fh.write(_csv(resp, kept)))
     if fig is not None:
         save_atomic(fig, args.plot, "--plot")
-    summary = _summary(resp, kept, None if args.input else args.step_time, args.step)
+    summary = _summary(resp, kept, None if args.input else args.step_time, args.step,
+                       {sig: _dc_gain(system.loop, sig) for sig in ("z", "y") if sig in resp.signals})
     if args.json:
         print(json.dumps({"system": system.description, "architecture": system.loop.architecture,
                           "mode": resp.mode, "sample_rate": resp.sample_rate, "steps": int(resp.time.size),
@@ -134,10 +135,20 @@ def _csv(resp: SimulationResponse, kept: list[str]) -> bytes:
     return buf.getvalue().encode()
 
 
+def _dc_gain(loop: Any, signal: str) -> float:
+    """The loop's steady-state gain from w to ``signal`` (nan when it cannot be evaluated)."""
+    try:
+        return float(loop.transfer("w", signal).dc_gain)
+    except (ValueError, ArithmeticError):
+        return math.nan
+
+
 def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None,
-             step: float = 1.0) -> dict[str, Any]:
+             step: float = 1.0, dc_gains: dict[str, float] | None = None) -> dict[str, Any]:
     """Final and peak values; for a step reference, the overshoot [%] and 2 % settling time [s] after it of
-    each of z and y that moved by at least 1 % of the step (a load's swing that returns to 0 has none)."""
+    each of z and y whose steady-state move is at least 1 % of the step: by the loop's DC gain from w when
+    it is finite (a load's swing, F(0) = 0, has none even when the run ends mid-swing), else by the run's
+    last sample."""
     final = {s: float(resp.signals[s][-1]) for s in kept} if resp.time.size else {}
     peak = {s: float(np.max(np.abs(resp.signals[s]))) for s in kept} if resp.time.size else {}
     metrics: dict[str, Any] = {}
@@ -147,7 +158,9 @@ def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None,
             if sig not in resp.signals:
                 continue
             x = resp.signals[sig][resp.time >= start]
-            if abs(x[-1] - x[0]) >= 0.01 * abs(step):
+            gain = (dc_gains or {}).get(sig, math.nan)
+            moves = abs(gain) >= 0.01 if math.isfinite(gain) else abs(x[-1] - x[0]) >= 0.01 * abs(step)
+            if moves:
                 metrics[sig] = {"overshoot_percent": resp.overshoot(sig, start=start),
                                 "settling_time": _number(resp.settling_time(sig, start=start))}
     return {"final": final, "peak": peak, "step_response": metrics}
