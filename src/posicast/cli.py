@@ -149,7 +149,8 @@ def _build_parser() -> _Parser:
     i.add_argument("--input", help="input column (omit for output-only data)")
     i.add_argument("--output", help="output column (not for Klipper files)")
     i.add_argument("--axis", choices=("x", "y", "z"), help="tested axis of a Klipper file whose name does not say")
-    i.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
+    i.add_argument("--modes", default="auto",
+                   help="number of modes, 1 to 6, or 'auto' (default: by BIC for oe and psd, 1 for the others)")
     i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
     _add_output_args(i, progress=True)
 
