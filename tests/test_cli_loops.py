@@ -41,6 +41,7 @@ LOOP = ["--num", "1", "--den", "1 1 0", "--kp", "10", "--kd", "10", "--derivativ
     (["simulate", *LOOP, "--t-end", "1e9", "--dt", "1e-3"], "steps, more than"),
     (["simulate", *LOOP, "--signals", "y,q"], "--signals"),
     (["simulate", *LOOP, "--signals", ","], "--signals must name"),
+    (["simulate", *LOOP, "--signals", "w,d"], "--signals must name at least one loop output"),
     (["simulate", "--num", "1", "--den", "1 1"], "simulate runs a loop"),
     (["simulate", *LOOP, "--input", "no_such_file.csv"], "no_such_file.csv"),
     (["simulate", *LOOP, "--disturbance", "1", "nan"], "--disturbance"),
@@ -112,6 +113,26 @@ def test_step_metrics_skip_a_swing_that_returns_to_zero(capsys):
     t = np.arange(2001) * 0.01
     r = pc.simulate(loop, t, w=np.ones_like(t), d=0.1 * (t >= 10), sample_rate=100.0, outputs=("z",))
     assert data["step_response"]["z"]["overshoot_percent"] == pytest.approx(r.overshoot("z", start=0.0), rel=1e-9)
+
+
+def test_simulate_reference_file_is_held_in_its_own_time(tmp_path, capsys):
+    """A reference file is breakpoints held until the next one: any spacing, any number of rows (it used to
+    need 16 evenly spaced rows, the identifier's rule), and in the file's time: a file that starts at 2 s
+    starts the reference at 2 s (it used to be moved to 0)."""
+    ref = tmp_path / "ref.csv"
+    ref.write_text("time,w\n2,0.5\n3.25,1\n")
+    out = tmp_path / "r.csv"
+    assert main(["simulate", *LOOP, "--t-end", "4", "--dt", "0.25", "--input", str(ref), "--out", str(out),
+                 "--signals", "w,z"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    w = {float(r[0]): float(r[1]) for r in rows}
+    assert [w[k] for k in (0.0, 1.75, 2.0, 3.0, 3.25, 4.0)] == [0.0, 0.0, 0.5, 0.5, 1.0, 1.0]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,w\n0,0\n1,1\n1,2\n")
+    assert main(["simulate", *LOOP, "--input", str(bad), "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("posicast: error: --input:") and "line 4: time 1 s does not increase" in err
+    assert not (tmp_path / "x.csv").exists()
 
 
 def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):
