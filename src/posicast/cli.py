@@ -314,8 +314,9 @@ def _add_sweep_parser(sub: Any) -> None:
     s = sub.add_parser("sweep", help="sweeps on Dask: stability charts, Monte Carlo, calibration farms")
     kinds = s.add_subparsers(dest="sweep", required=True, parser_class=type(s))
     c = kinds.add_parser("chart", help="certified stability of seed 000's inverse-ZV loop over gain x delay error")
-    c.add_argument("--gain", default="0.05:1.5:30", help="controller gain values (default 0.05:1.5:30)")
-    c.add_argument("--delay-error", default="-0.5:0.5:11", help="relative shaper delay errors (default -0.5:0.5:11)")
+    c.add_argument("--gain", default="0.05:1.5:30", help="controller gain values, START:STOP:NUM or comma-separated (default 0.05:1.5:30)")
+    c.add_argument("--delay-error", default="-0.5:0.5:11", help="relative shaper delay errors, START:STOP:NUM or comma-separated; a negative "
+                        "start needs '=' (default -0.5:0.5:11)")
     m = kinds.add_parser("montecarlo", help="seed 003's two-mass loop over c1, c2, k2 (uniform draws)")
     m.add_argument("--n", type=int, default=100, help="draws (default 100)")
     m.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
@@ -332,7 +333,8 @@ def _add_sweep_parser(sub: Any) -> None:
     k.add_argument("--firmware", default="klipper", help="klipper, reprapfirmware, marlin or prusa (default klipper)")
     f = kinds.add_parser("function", help="any importable function over a grid or seeded draws")
     f.add_argument("target", help="MODULE:NAME of a function taking the parameters as keywords")
-    f.add_argument("--grid", action="append", metavar="NAME=VALUES", help="a grid axis (repeat)")
+    f.add_argument("--grid", action="append", metavar="NAME=VALUES",
+                   help="a grid axis, VALUES as START:STOP:NUM or comma-separated (repeat)")
     f.add_argument("--uniform", action="append", metavar="NAME=LOW:HIGH", help="uniform draws (repeat)")
     f.add_argument("--n", type=int, help="draws (with --uniform)")
     f.add_argument("--seed", type=int, help="seed of the draws (with --uniform)")
