@@ -151,6 +151,32 @@ def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):
     assert out == "" and "quick work" not in err and "hidden" not in err and "] step one" in err
 
 
+def test_progress_on_a_terminal_is_one_tqdm_status_line(monkeypatch):
+    """stderr a TTY: the messages redraw one line in place (tqdm), ended by a newline when the work ends."""
+    import io
+    import sys
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    with working("certifying", delay=0.0):
+        time.sleep(0.7)
+    with steps(delay=0.0) as say:
+        say("file 1 of 2")
+        say("file 2 of 2")
+    text = term.getvalue()
+    lines = text.split("\n")
+    assert len(lines) == 3 and lines[2] == ""  # two status lines, each closed by one newline
+    assert lines[0].startswith("\rcertifying: 00:0") and "[" not in lines[0]  # tqdm's form, not the log form
+    assert lines[1].rstrip().endswith("file 2 of 2: 00:00") and "\rfile 1 of 2" in lines[1]
+    with steps(quiet=True, delay=0.0) as say:
+        say("hidden")
+    assert term.getvalue() == text
+
+
 def test_json_stays_parseable_with_progress(capsys, monkeypatch):
     """Progress shown from the start (delay 0): stdout is still exactly one JSON document."""
     import posicast.commands.progress as progress

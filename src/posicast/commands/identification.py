@@ -66,11 +66,12 @@ def _calibrate_cmd(args: argparse.Namespace) -> int:
         v.positive(args.max_smoothing, "--max-smoothing")
     firmware = [f.strip().lower() for f in args.firmware.split(",") if f.strip()]
     labels = _at_labels(args.at, len(args.files))
-    cal = calibrate(args.files, firmware=firmware, axis=args.axis, at=labels, vtol=args.vtol, margin=margin,
-                    max_smoothing=args.max_smoothing, slack=args.slack, klipper_version=args.klipper_version,
-                    input=args.input,
-                    output=args.output, n_modes=_n_modes(args.modes), progress=steps(args.quiet),
-                    band=None if args.band is None else tuple(args.band))
+    n_modes = _n_modes(args.modes)
+    with steps(args.quiet) as say:
+        cal = calibrate(args.files, firmware=firmware, axis=args.axis, at=labels, vtol=args.vtol, margin=margin,
+                        max_smoothing=args.max_smoothing, slack=args.slack, klipper_version=args.klipper_version,
+                        input=args.input, output=args.output, n_modes=n_modes, progress=say,
+                        band=None if args.band is None else tuple(args.band))
     if args.plot:  # everything computed: only now write
         pyplot()  # the Agg backend before the figure is drawn
         save_atomic(calibration_plot(cal)[0], args.plot)

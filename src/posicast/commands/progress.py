@@ -12,6 +12,11 @@ first line comes after :data:`DELAY` seconds.
 * :func:`steps` is a callback for library code that reports its steps as lines of text
   (``calibrate(progress=...)``): each line after the first second is shown.
 
+On a terminal (stderr is a TTY) the same messages are one live status line drawn by tqdm
+(a core dependency, imported only then): ``message: 00:12`` redrawn in place, left on
+screen when the work ends.  Anywhere else (a pipe, a log file, CI) they are the plain lines
+above, so a log holds no carriage returns.
+
 The library's loops are not touched: the callback is called at a coarse level (a file,
 a firmware), and the thread only reads the clock.
 """
@@ -22,9 +27,9 @@ import sys
 import threading
 import time
 from contextlib import contextmanager
-from typing import Callable, Iterator
+from typing import Any, Iterator
 
-__all__ = ["working", "steps", "DELAY"]
+__all__ = ["working", "steps", "Steps", "DELAY"]
 
 #: Seconds of silence before any progress is shown.
 DELAY = 1.0
@@ -34,13 +39,51 @@ def _line(start: float, msg: str) -> None:
     print(f"[{time.monotonic() - start:5.1f} s] {msg}", file=sys.stderr, flush=True)
 
 
+def _on_terminal() -> bool:
+    isatty = getattr(sys.stderr, "isatty", None)
+    return bool(isatty and isatty())
+
+
+def _status_line(what: str) -> Any:
+    """A tqdm status line on stderr, drawn at once (no bar: the work's length is unknown)."""
+    from tqdm import tqdm
+
+    return tqdm(total=None, desc=what, file=sys.stderr, mininterval=0.2, leave=True, bar_format="{desc}: {elapsed}")
+
+
 @contextmanager
 def working(what: str, quiet: bool = False, delay: float | None = None) -> Iterator[None]:
     """Say on stderr that ``what`` goes on, after ``delay`` (default :data:`DELAY`) seconds and then at
-    doubling intervals, while the block runs; and when it ends, if anything was said."""
+    doubling intervals, while the block runs; and when it ends, if anything was said.  On a
+    terminal: one live tqdm status line instead."""
     wait = DELAY if delay is None else delay
     if quiet:
         yield
+        return
+    if _on_terminal():
+        began = time.monotonic()
+        done = threading.Event()
+        bar: list[Any] = []  # made by the thread once ``wait`` has passed (tqdm's own delay would end
+        #                      a line it only refreshed without its newline)
+
+        def redraw() -> None:
+            if done.wait(wait):
+                return
+            bar.append(_status_line(what))
+            bar[0].start_t -= time.monotonic() - began  # elapsed from the start of the work
+            bar[0].refresh()
+            while not done.wait(0.5):
+                bar[0].refresh()
+
+        thread = threading.Thread(target=redraw, name="posicast-progress", daemon=True)
+        thread.start()
+        try:
+            yield
+        finally:
+            done.set()
+            thread.join()
+            if bar:
+                bar[0].close()
         return
     start = time.monotonic()
     done = threading.Event()
@@ -64,14 +107,49 @@ def working(what: str, quiet: bool = False, delay: float | None = None) -> Itera
             _line(start, f"{what}: done")
 
 
-def steps(quiet: bool = False, delay: float | None = None) -> Callable[[str], None]:
+class Steps:
     """A ``progress(message)`` callback printing ``[elapsed] message`` on stderr once ``delay`` (default
-    :data:`DELAY`) has passed."""
-    start = time.monotonic()
-    wait = DELAY if delay is None else delay
+    :data:`DELAY`) has passed; on a terminal, the messages replace each other on one tqdm status line.
 
-    def say(msg: str) -> None:
-        if not quiet and time.monotonic() - start >= wait:
-            _line(start, msg)
+    Use it as a context manager, so that a terminal's status line is closed before the result is
+    printed (or the error line)::
 
-    return say
+        with steps(args.quiet) as say:
+            cal = calibrate(files, progress=say)
+    """
+
+    def __init__(self, quiet: bool = False, delay: float | None = None) -> None:
+        self._start = time.monotonic()
+        self._wait = DELAY if delay is None else delay
+        self._quiet = quiet
+        self._bar: Any = None  # the terminal's status line, made at the first message shown
+
+    def __call__(self, msg: str) -> None:
+        if self._quiet or time.monotonic() - self._start < self._wait:
+            return
+        if not _on_terminal():
+            _line(self._start, msg)
+            return
+        if self._bar is None:
+            self._bar = _status_line(msg)
+            # elapsed from the start of the work, as in the plain lines (tqdm's own clock)
+            self._bar.start_t -= time.monotonic() - self._start
+            self._bar.refresh()
+        self._bar.set_description_str(msg, refresh=True)
+
+    def close(self) -> None:
+        """End the terminal's status line (nothing to do for plain lines)."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+
+    def __enter__(self) -> "Steps":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def steps(quiet: bool = False, delay: float | None = None) -> Steps:
+    """The :class:`Steps` callback (``with steps(quiet) as say: ...``)."""
+    return Steps(quiet, delay)

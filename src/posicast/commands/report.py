@@ -19,8 +19,8 @@ def run(args: argparse.Namespace) -> int:
     output_dir(args.out_dir, "--out")  # checked before any work
     pyplot()  # the Agg backend before any figure is drawn
     try:
-        summary = write_report(args.data, args.out_dir, firmware=args.firmware, axis=args.axis,
-                               progress=steps(args.quiet))
+        with steps(args.quiet) as say:
+            summary = write_report(args.data, args.out_dir, firmware=args.firmware, axis=args.axis, progress=say)
     except NoModeFound as exc:
         print(f"posicast: {exc}", file=sys.stderr)
         return 1
