@@ -105,6 +105,21 @@ def test_identify_json(capsys, tmp_path):
     assert abs(data["modes"][0]["freq_hz"] - 28.0) < 0.5  # and it is the true mode
 
 
+@pytest.mark.parametrize("method", ["arx", "freq"])
+def test_identify_one_mode_methods_run_with_the_default_modes(method, capsys, tmp_path):
+    """--modes defaults to 'auto', which only oe and psd can do; arx and freq (seed 002: one mode) used to
+    stop with "n_modes='auto' is available for method='oe' and 'psd' only" unless --modes 1 was given."""
+    d = pc.testing.synthetic(pc.Mode.from_hz(28.0, 0.05), "random_binary", sample_rate=400.0, n=2000, noise=0.002,
+                             seed=3)
+    f = tmp_path / "io.csv"
+    f.write_text("time,u,y\n" + "".join(f"{t!r},{u!r},{y!r}\n" for t, u, y in zip(d.t.tolist(), d.u.tolist(), d.y.tolist())))
+    data = _json(capsys, "identify", str(f), "--input", "u", "--output", "y", "--method", method)
+    ds = pc.identification.load_csv(f)
+    r = pc.identify(ds.t, ds.column("u"), ds.column("y"), n_modes=1, method=method)
+    assert data["method"] == method and len(data["modes"]) == 1
+    assert data["modes"][0]["omega"] == r.modes[0].omega and data["modes"][0]["zeta"] == r.modes[0].zeta
+
+
 def test_calibrate_json_with_a_band(capsys):
     data = _json(capsys, "calibrate", str(PSD_FILE), "--band", "30", "60")
     cal = pc.calibrate([str(PSD_FILE)], band=(30.0, 60.0))

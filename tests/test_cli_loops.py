@@ -41,6 +41,7 @@ LOOP = ["--num", "1", "--den", "1 1 0", "--kp", "10", "--kd", "10", "--derivativ
     (["simulate", *LOOP, "--t-end", "1e9", "--dt", "1e-3"], "steps, more than"),
     (["simulate", *LOOP, "--signals", "y,q"], "--signals"),
     (["simulate", *LOOP, "--signals", ","], "--signals must name"),
+    (["simulate", *LOOP, "--signals", "w,d"], "--signals must name at least one loop output"),
     (["simulate", "--num", "1", "--den", "1 1"], "simulate runs a loop"),
     (["simulate", *LOOP, "--input", "no_such_file.csv"], "no_such_file.csv"),
     (["simulate", *LOOP, "--disturbance", "1", "nan"], "--disturbance"),
@@ -90,6 +91,48 @@ def test_simulate_reads_a_reference_file(tmp_path, capsys):
     assert w[0.0] == 0.0 and w[0.24] == 0.0 and w[0.25] == 0.25 and w[0.99] == 0.75 and w[1.2] == 1.0  # held
     assert w[3.0] == 1.0
     assert data["step_response"] == {}  # no step: no step metrics
+
+
+def test_step_metrics_skip_a_swing_that_returns_to_zero(capsys):
+    """The crane's sway y = F z has F(0) = 0 (seed 001 eq. 11): no overshoot for it, even when a sampled run
+    ends mid-swing with y away from 0 (here y(20 s) = 0.019 after a load step, which read as a 5600 % overshoot of a 0.019 move).
+    The hoist z (DC gain 1) keeps its metrics, equal to the response's own."""
+    import numpy as np
+
+    import posicast as pc
+
+    argv = ["simulate", "--case", "gantry_crane", "--kp", "30", "--kd", "1", "--derivative-filter", "0.01",
+            "--shaper", "dezv", "--t-end", "20", "--sample-rate", "100", "--disturbance", "10", "0.1", "--json"]
+    assert main(argv) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert abs(data["final"]["y"]) > 0.01  # the run ends mid-swing: the last sample alone would count it
+    assert set(data["step_response"]) == {"z"}
+    crane = pc.cases.ALL["gantry_crane"]
+    C = pc.TransferFunction.from_poly([1.0 + 30.0 * 0.01, 30.0], [0.01, 1.0])  # 30 + s / (0.01 s + 1)
+    loop = pc.control_action(G=crane.G, F=crane.F, C=C, S=pc.design("dezv", crane.mode))
+    t = np.arange(2001) * 0.01
+    r = pc.simulate(loop, t, w=np.ones_like(t), d=0.1 * (t >= 10), sample_rate=100.0, outputs=("z",))
+    assert data["step_response"]["z"]["overshoot_percent"] == pytest.approx(r.overshoot("z", start=0.0), rel=1e-9)
+
+
+def test_simulate_reference_file_is_held_in_its_own_time(tmp_path, capsys):
+    """A reference file is breakpoints held until the next one: any spacing, any number of rows (it used to
+    need 16 evenly spaced rows, the identifier's rule), and in the file's time: a file that starts at 2 s
+    starts the reference at 2 s (it used to be moved to 0)."""
+    ref = tmp_path / "ref.csv"
+    ref.write_text("time,w\n2,0.5\n3.25,1\n")
+    out = tmp_path / "r.csv"
+    assert main(["simulate", *LOOP, "--t-end", "4", "--dt", "0.25", "--input", str(ref), "--out", str(out),
+                 "--signals", "w,z"]) == 0
+    rows = [line.split(",") for line in out.read_text().splitlines()[1:]]
+    w = {float(r[0]): float(r[1]) for r in rows}
+    assert [w[k] for k in (0.0, 1.75, 2.0, 3.0, 3.25, 4.0)] == [0.0, 0.0, 0.5, 0.5, 1.0, 1.0]
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,w\n0,0\n1,1\n1,2\n")
+    assert main(["simulate", *LOOP, "--input", str(bad), "--out", str(tmp_path / "x.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("posicast: error: --input:") and "line 4: time 1 s does not increase" in err
+    assert not (tmp_path / "x.csv").exists()
 
 
 def test_progress_is_on_stderr_after_a_delay_and_quiet_silences_it(capsys):

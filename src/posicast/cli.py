@@ -82,18 +82,20 @@ def _add_output_args(p: argparse.ArgumentParser, progress: bool = False) -> None
 
 def _add_mode_args(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--omega", type=float, help="natural frequency [rad/s]")
-    g.add_argument("--freq-hz", type=float, help="natural frequency [Hz]")
-    p.add_argument("--zeta", type=float, required=True, help="damping ratio, 0 <= zeta < 1")
+    g.add_argument("--omega", type=float, help="the mode's natural frequency [rad/s]")
+    g.add_argument("--freq-hz", type=float, help="the mode's natural frequency [Hz]")
+    p.add_argument("--zeta", type=float, required=True, help="the mode's damping ratio, in [0, 1)")
 
 
 def _add_param_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--vtol", type=float, help="tolerable vibration for ei/ei2/ei3, in (0, 1)")
-    p.add_argument("--k", type=int, help="derivative order for zvdk (>= 0)")
-    p.add_argument("--n", type=int, help="impulses for mis_zv / first factor of mis_zvd (>= 2)")
-    p.add_argument("--m", type=int, help="second factor of mis_zvd (>= 2)")
-    p.add_argument("--T", type=float, help="kernel length for dezv/dtzv/dczv/dtazv [s], default pi/omega")
-    p.add_argument("--method", choices=("exact", "singhose", "fit"), help="ei: exact (default), singhose (t3 = T_d) or Singhose's fit")
+    p.add_argument("--vtol", type=float,
+                   help="tolerable residual vibration for ei/ei2/ei3/si/um_si, in (0, 1) (default 0.05)")
+    p.add_argument("--k", type=int, help="derivative order for zvdk, >= 0 (default 1)")
+    p.add_argument("--n", type=int, help="impulses of mis_zv (default 3) / of mis_zvd's first factor (default 2), >= 2")
+    p.add_argument("--m", type=int, help="impulses of mis_zvd's second factor, >= 2 (default 3)")
+    p.add_argument("--T", type=float, help="kernel length for dezv/dtzv/dczv/dtazv [s] (default pi/omega)")
+    p.add_argument("--method", choices=("exact", "singhose", "fit"),
+                   help="ei: exact (default), singhose (t3 = T_d) or Singhose's fit")
 
 
 def _build_parser() -> _Parser:
@@ -115,11 +117,13 @@ def _build_parser() -> _Parser:
     _add_output_args(d)
 
     s = sub.add_parser("sensitivity", help="plot residual vibration against omega/omega_model")
-    s.add_argument("kinds", nargs="+", help="one or more shaper kinds")
+    s.add_argument("kinds", nargs="+", help="one or more shaper kinds (see 'posicast kinds')")
     _add_mode_args(s)
     _add_param_args(s)
     s.add_argument("--out", help="output image (png, pdf, svg); needed unless --json")
-    s.add_argument("--tol", type=float, default=0.05, help="tolerance line and insensitivity level (default 0.05)")
+    s.add_argument("--tol", type=float, default=0.05,
+                   help="residual vibration level of the tolerance line and of the insensitivity width, in (0, 1) "
+                        "(default 0.05)")
     _add_output_args(s)
 
     k = sub.add_parser("kinds", help="list the shaper kinds")
@@ -133,14 +137,15 @@ def _build_parser() -> _Parser:
     x.add_argument("--zplane", action="store_true",
                    help="design in the z plane at 1/sample-rate (zv/zvd/zvdd/zvddd/zvdk, seed 002 eq. 8)")
     x.add_argument("--stride", default=None,
-                   help="with --zplane: samples between taps, or 'positive' (default: the smallest with nonnegative taps)")
+                   help="with --zplane: samples between taps, or 'positive' (default: the smallest stride with nonnegative "
+                        "taps)")
     # the choices are posicast.io.export's EXPORT_FORMATS/FORMS/PRECISIONS, spelled out so that building the
     # parser imports nothing (tests/test_cli.py checks they agree)
     x.add_argument("--format", choices=("json", "c"), default="c", help="c (default) or json")
     x.add_argument("--form", choices=("sparse", "dense"), default="sparse", help="sparse taps (default) or dense")
     x.add_argument("--precision", choices=("double", "float"), default="double", help="C type (default double)")
     x.add_argument("--inverse", action="store_true", help="export 1/S (seed 000 eq. 19-20)")
-    x.add_argument("--name", default="shaper", help="C identifier for the arrays and functions")
+    x.add_argument("--name", default="shaper", help="C identifier for the arrays and functions (default shaper)")
     x.add_argument("--output", help="write to this file (.h, .c, .json, .txt) instead of standard output")
     _add_output_args(x)
 
@@ -149,8 +154,10 @@ def _build_parser() -> _Parser:
     i.add_argument("--input", help="input column (omit for output-only data)")
     i.add_argument("--output", help="output column (not for Klipper files)")
     i.add_argument("--axis", choices=("x", "y", "z"), help="tested axis of a Klipper file whose name does not say")
-    i.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
-    i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"), help="estimator (default oe / psd)")
+    i.add_argument("--modes", default="auto",
+                   help="number of modes, 1 to 6, or 'auto' (default: by BIC for oe and psd, 1 for the others)")
+    i.add_argument("--method", choices=("oe", "arx", "freq", "decay", "psd"),
+                   help="estimator (default: oe with --input, psd without)")
     _add_output_args(i, progress=True)
 
     c = sub.add_parser("calibrate", help="identify modes in resonance tests and recommend firmware settings")
@@ -165,16 +172,19 @@ def _build_parser() -> _Parser:
     c.add_argument("--vtol", type=float,
                    help="worst-case vibration target, in (0, 1): least smoothing within it (default: the best "
                         "trade-off of vibration and smoothing)")
-    c.add_argument("--margin", type=float, default=0.05, help="frequency drift of the modes, in [0, 0.5) (default 0.05)")
-    c.add_argument("--max-smoothing", type=float, help="upper bound on Klipper's smoothing [mm]")
+    c.add_argument("--margin", type=float, default=0.05,
+                   help="relative frequency drift of the modes, in [0, 0.5) (default 0.05: +-5 %%)")
+    c.add_argument("--max-smoothing", type=float, help="upper bound on Klipper's smoothing [mm] (default: none)")
     c.add_argument("--slack", type=float, default=0.01,
                    help="remaining vibration (the firmware tool's measure) that may be traded for less smoothing "
                         "against the tool's own pick, in [0, 0.2] (default 0.01)")
     c.add_argument("--input", help="input column (input/output CSV)")
     c.add_argument("--output", help="output column (input/output CSV)")
-    c.add_argument("--modes", default="auto", help="number of modes, 1 to 6, or 'auto' (default)")
+    c.add_argument("--modes", default="auto",
+                   help="number of modes, 1 to 6, or 'auto' (default: every significant mode)")
     c.add_argument("--band", type=float, nargs=2, metavar=("FMIN", "FMAX"),
-                   help="search for modes only in this band [Hz] (inside the band the test excited)")
+                   help="search for modes only in this band [Hz], inside the band the test excited (default: that "
+                        "band)")
     c.add_argument("--plot", help="write the calibration figure (png, pdf, svg)")
     _add_output_args(c, progress=True)
 
@@ -184,19 +194,22 @@ def _build_parser() -> _Parser:
     src.add_argument("--num", help="plant numerator, descending powers, e.g. '1'")
     t.add_argument("--den", help="plant denominator, descending powers, e.g. '1 1 0' (with --num)")
     t.add_argument("--delay", type=float, default=0.0, help="plant dead time [s] (default 0)")
-    t.add_argument("--shaper", help="shaper kind (see 'posicast kinds'); default: none")
-    t.add_argument("--omega", type=float, help="shaper mode frequency [rad/s] (default: the case's mode)")
-    t.add_argument("--zeta", type=float, help="shaper mode damping (default: the case's mode)")
+    t.add_argument("--shaper", help="shaper kind (see 'posicast kinds') (default: none)")
+    t.add_argument("--omega", type=float,
+                   help="natural frequency of the shaper's mode [rad/s] (default: the case's mode)")
+    t.add_argument("--zeta", type=float, help="damping ratio of the shaper's mode (default: the case's mode)")
     t.add_argument("--architecture", default=None,
                    choices=("control_action", "inverse_shaper", "feedforward"),
                    help="where the shaper sits (default control_action)")
     t.add_argument("--structure", default=None, choices=("control_action", "inverse_shaper", "feedforward"),
                    help=argparse.SUPPRESS)  # the 0.1 spelling: still read, with a warning on stderr
     t.add_argument("--controller", default="pd", choices=("pd", "pi"), help="controller structure (default pd)")
-    t.add_argument("--ms", type=float, default=2.0, help="peak sensitivity bound (default 2)")
-    t.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1) (pd only)")
+    t.add_argument("--ms", type=float, default=2.0, help="bound on the peak sensitivity Ms = ||S||inf (default 2)")
+    t.add_argument("--derivative-filter", type=float,
+                   help="time constant Tf [s] of Kd s / (Tf s + 1), pd only (default: none, Kd s)")
     for g in ("kp", "ki", "kd"):
-        t.add_argument(f"--{g}-range", type=float, nargs=2, metavar=("LOW", "HIGH"), help=f"bounds of {g}")
+        t.add_argument(f"--{g}-range", type=float, nargs=2, metavar=("LOW", "HIGH"),
+                       help=f"search range of {g} (default: +-10^4 times its natural scale)")
     t.add_argument("--plot", help="write the region in the gain plane (png, pdf, svg)")
     t.add_argument("--nyquist", help="write the Nyquist plot, zoomed on -1 with the Ms circle (png, pdf, svg)")
     _add_output_args(t, progress=True)
@@ -205,7 +218,9 @@ def _build_parser() -> _Parser:
     q.add_argument("--uncertainty", type=float, default=50.0, help="c1, c2, k2 uncertainty [%%] (default 50)")
     q.add_argument("--stability", type=float, default=1.413, help="bound on |PG/(1+PG)| (default 1.413, eq. 2)")
     q.add_argument("--matching", type=float, default=0.1, help="bound on |PGF/(1+PG) - F_m| (default 0.1, eq. 3)")
-    q.add_argument("--structure", default="lead,lead,lead", help="controller sections, comma-separated")
+    q.add_argument("--structure", default="lead,lead,lead",
+                   help="controller sections, comma-separated: lead, real_zero, real_pole, complex_zero, "
+                        "complex_pole, second_order, notch, integrator (default lead,lead,lead)")
     q.add_argument("--plot", help="write the Nichols chart with the bounds (png, pdf, svg)")
     _add_output_args(q, progress=True)
 
@@ -242,20 +257,23 @@ def _add_system_args(p: argparse.ArgumentParser) -> None:
     src.add_argument("--num", help="numerator: " + _SYSTEM_SYNTAX)
     g.add_argument("--den", help="denominator (with --num), same syntax")
     g.add_argument("--delay", type=float, default=0.0, help="dead time of the plant [s] (default 0)")
-    c = p.add_argument_group("loop (with a controller; without one the plant alone is analysed)")
+    c = p.add_argument_group("loop (with a controller: gains not given are 0; without one the plant alone is "
+                                "analysed)")
     c.add_argument("--kp", type=float, help="proportional gain")
     c.add_argument("--ki", type=float, help="integral gain")
     c.add_argument("--kd", type=float, help="derivative gain")
-    c.add_argument("--derivative-filter", type=float, help="Tf of Kd s / (Tf s + 1)")
+    c.add_argument("--derivative-filter", type=float,
+                   help="time constant Tf [s] of Kd s / (Tf s + 1) (default: none, Kd s)")
     c.add_argument("--controller-num", help="controller numerator (instead of --kp/--ki/--kd), same syntax")
     c.add_argument("--controller-den", help="controller denominator (default 1)")
     c.add_argument("--architecture", default=None,
                    choices=("feedforward", "control_action", "inverse_shaper"),
                    help="where the shaper sits (default control_action)")
     h = p.add_argument_group("shaper")
-    h.add_argument("--shaper", help="shaper kind (see 'posicast kinds'); default: none")
-    h.add_argument("--omega", type=float, help="shaper mode frequency [rad/s] (default: the case's mode)")
-    h.add_argument("--zeta", type=float, help="shaper mode damping (default: the case's mode)")
+    h.add_argument("--shaper", help="shaper kind (see 'posicast kinds') (default: none)")
+    h.add_argument("--omega", type=float,
+                   help="natural frequency of the shaper's mode [rad/s] (default: the case's mode)")
+    h.add_argument("--zeta", type=float, help="damping ratio of the shaper's mode (default: the case's mode)")
 
 
 def _add_stability_parser(sub: Any) -> None:
@@ -278,7 +296,9 @@ def _add_simulate_parser(sub: Any) -> None:
                    help="controller and shaper sampled at this rate [Hz] (default: continuous)")
     p.add_argument("--step-time", type=float, default=0.0, help="time of the reference step [s] (default 0)")
     p.add_argument("--step", type=float, default=1.0, help="height of the reference step (default 1)")
-    p.add_argument("--input", metavar="FILE", help="reference from a CSV file with columns t,w (instead of a step)")
+    p.add_argument("--input", metavar="FILE",
+                   help="reference w from a CSV file with columns t [s], w, held from each row to the next "
+                        "(instead of a step)")
     p.add_argument("--disturbance", type=float, nargs=2, metavar=("TIME", "SIZE"),
                    help="an output disturbance step d of SIZE at TIME [s]")
     p.add_argument("--input-disturbance", type=float, nargs=2, metavar=("TIME", "SIZE"),
@@ -294,13 +314,15 @@ def _add_sweep_parser(sub: Any) -> None:
     s = sub.add_parser("sweep", help="sweeps on Dask: stability charts, Monte Carlo, calibration farms")
     kinds = s.add_subparsers(dest="sweep", required=True, parser_class=type(s))
     c = kinds.add_parser("chart", help="certified stability of seed 000's inverse-ZV loop over gain x delay error")
-    c.add_argument("--gain", default="0.05:1.5:30", help="controller gain values (default 0.05:1.5:30)")
-    c.add_argument("--delay-error", default="-0.5:0.5:11", help="relative shaper delay errors (default -0.5:0.5:11)")
+    c.add_argument("--gain", default="0.05:1.5:30", help="controller gain values, START:STOP:NUM or comma-separated (default 0.05:1.5:30)")
+    c.add_argument("--delay-error", default="-0.5:0.5:11", help="relative shaper delay errors, START:STOP:NUM or comma-separated; a negative "
+                        "start needs '=' (default -0.5:0.5:11)")
     m = kinds.add_parser("montecarlo", help="seed 003's two-mass loop over c1, c2, k2 (uniform draws)")
     m.add_argument("--n", type=int, default=100, help="draws (default 100)")
     m.add_argument("--seed", type=int, default=0, help="seed of the draws (default 0)")
     m.add_argument("--grid27", action="store_true", help="the seed's 27 plants instead of draws")
-    m.add_argument("--shaper", default="zvdk", help="shaper kind for the nominal mode (default zvdk: ZVD^2)")
+    m.add_argument("--shaper", default="zvdk",
+                   help="shaper kind (see 'posicast kinds') for the nominal mode (default zvdk: ZVD^2)")
     m.add_argument("--architecture", default="control_action", choices=("control_action", "feedforward"),
                    help="the shaper inside the loop (seed 003, default) or in front of it")
     m.add_argument("--no-simulate", action="store_true", help="skip the step response (overshoot, settling)")
@@ -308,10 +330,11 @@ def _add_sweep_parser(sub: Any) -> None:
     k = kinds.add_parser("calibrate", help="a folder of resonance-test logs to one table")
     k.add_argument("folder", help="directory of Klipper logs / PSD files")
     k.add_argument("--pattern", default="*.csv", help="file glob (default *.csv)")
-    k.add_argument("--firmware", default="klipper", help="klipper, reprapfirmware, marlin or prusa")
+    k.add_argument("--firmware", default="klipper", help="klipper, reprapfirmware, marlin or prusa (default klipper)")
     f = kinds.add_parser("function", help="any importable function over a grid or seeded draws")
     f.add_argument("target", help="MODULE:NAME of a function taking the parameters as keywords")
-    f.add_argument("--grid", action="append", metavar="NAME=VALUES", help="a grid axis (repeat)")
+    f.add_argument("--grid", action="append", metavar="NAME=VALUES",
+                   help="a grid axis, VALUES as START:STOP:NUM or comma-separated (repeat)")
     f.add_argument("--uniform", action="append", metavar="NAME=LOW:HIGH", help="uniform draws (repeat)")
     f.add_argument("--n", type=int, help="draws (with --uniform)")
     f.add_argument("--seed", type=int, help="seed of the draws (with --uniform)")

@@ -30,8 +30,9 @@ def run(args: argparse.Namespace) -> int:
             if args.input is not None:
                 if args.output is None:
                     raise ValueError("--output is required with --input")
-                r = identify(ds.t, ds.column(args.input), ds.column(args.output), n_modes=nm,
-                             method=args.method or "oe")
+                method = args.method or "oe"
+                r = identify(ds.t, ds.column(args.input), ds.column(args.output), method=method,
+                             n_modes=_fixed_unless_auto_fits(nm, method))
             elif ds.kind in ("klipper_raw", "klipper_psd"):
                 if args.output is not None or args.method not in (None, "psd"):
                     raise ValueError("Klipper files are identified from their spectrum (method psd); "
@@ -39,8 +40,8 @@ def run(args: argparse.Namespace) -> int:
                 r = identify_resonances(resonance_data(ds, args.axis), nm)
             elif args.output is not None:
                 method = args.method or "psd"
-                r = identify(ds.t, None, ds.column(args.output), n_modes=nm if method == "psd" else
-                             (1 if nm == "auto" else nm), method=method)
+                r = identify(ds.t, None, ds.column(args.output), n_modes=_fixed_unless_auto_fits(nm, method),
+                             method=method)
             else:
                 raise ValueError("--output is required (or --input and --output) for CSV data")
     except NoModeFound as exc:
@@ -81,6 +82,12 @@ def _calibrate_cmd(args: argparse.Namespace) -> int:
         if args.plot:
             print(f"wrote {args.plot}")
     return 0
+
+
+def _fixed_unless_auto_fits(n_modes: int | str, method: str) -> int | str:
+    """``--modes auto`` (the default) picks the order by BIC where the estimator can (oe, psd); the
+    others (arx, freq: one mode; decay) fit one mode unless ``--modes`` says how many."""
+    return 1 if n_modes == "auto" and method not in ("oe", "psd") else n_modes
 
 
 def _n_modes(text: str) -> int | str:

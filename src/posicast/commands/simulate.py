@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import _validate as v
-from ..identification import load_csv
+from ..identification.data import read_table
 from ..simulation import simulate
 from ..simulation.response import SimulationResponse
 from .figures import pyplot, save_atomic, write_atomic
@@ -28,6 +28,7 @@ from .systems import system_of
 __all__ = ["run"]
 
 _SIGNALS = ("w", "d", "di", "n", "e", "v", "u", "z", "y", "r", "m")
+_INPUTS = _SIGNALS[:4]
 #: At most this many time steps (a CSV row each).
 MAX_STEPS = 20_000_000
 
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     di = _step(args.input_disturbance, t, "--input-disturbance")
     with working(f"simulating {t.size} steps", args.quiet):
         resp = simulate(system.loop, t, w=w, d=d, di=di, sample_rate=args.sample_rate,
-                        outputs=tuple(s for s in signals if s not in ("w", "d", "di", "n")))
+                        outputs=tuple(s for s in signals if s not in _INPUTS))
     kept = [s for s in signals if s in resp.signals]
     fig = None
     if args.plot:
@@ -56,7 +57,8 @@ def run(args: argparse.Namespace) -> int:
         write_atomic(csv_path, args.out, "--out", lambda fh: fh.write(_csv(resp, kept)))
     if fig is not None:
         save_atomic(fig, args.plot, "--plot")
-    summary = _summary(resp, kept, None if args.input else args.step_time, args.step)
+    summary = _summary(resp, kept, None if args.input else args.step_time, args.step,
+                       {sig: _dc_gain(system.loop, sig) for sig in ("z", "y") if sig in resp.signals})
     if args.json:
         print(json.dumps({"system": system.description, "architecture": system.loop.architecture,
                           "mode": resp.mode, "sample_rate": resp.sample_rate, "steps": int(resp.time.size),
@@ -88,6 +90,9 @@ def _signals(text: str) -> list[str]:
         raise ValueError("--signals must name at least one signal")
     for s in names:
         v.choice(s, "--signals", _SIGNALS)
+    if all(s in _INPUTS for s in names):
+        raise ValueError(f"--signals must name at least one loop output ({', '.join(_SIGNALS[4:])}) besides the "
+                         f"inputs, got {text!r}")
     return list(dict.fromkeys(names))
 
 
@@ -109,14 +114,23 @@ def _reference(args: argparse.Namespace, t: np.ndarray) -> np.ndarray:
     if args.input is None:
         v.finite_real(args.step_time, "--step-time")
         return v.finite_real(args.step, "--step") * (t >= args.step_time).astype(float)
-    ds = load_csv(args.input)
-    col = "w" if "w" in ds.columns else (next(iter(ds.columns)) if len(ds.columns) == 1 else None)
+    header, data, lines = read_table(args.input)
+    low = [h.strip().lower() for h in header]
+    tcol = next((j for j, h in enumerate(low) if h in ("t", "time")), 0)
+    rest = [j for j in range(len(header)) if j != tcol]
+    col = next((j for j in rest if low[j] == "w"), rest[0] if len(rest) == 1 else None)
     if col is None:
         raise ValueError(f"--input: {args.input} must have a time column and a column 'w' (or one signal), "
-                         f"got columns {', '.join(ds.columns)}")
-    # the reference is held between the file's samples (zero-order hold), its last value after its end
-    idx = np.clip(np.searchsorted(ds.t, t, side="right") - 1, 0, ds.t.size - 1)
-    return np.where(t >= ds.t[0], np.asarray(ds.column(col), dtype=float)[idx], 0.0)
+                         f"got columns {', '.join(header)}")
+    tf, wf = data[:, tcol], data[:, col]
+    bad = np.flatnonzero(np.diff(tf) <= 0)
+    if bad.size:
+        raise ValueError(f"--input: {args.input}: line {lines[bad[0] + 1]}: time {tf[bad[0] + 1]:g} s does not "
+                         f"increase (previous {tf[bad[0]]:g} s)")
+    # the reference is held from each row's time to the next (zero-order hold, any spacing, in the file's
+    # own time: 0 before its first row), its last value after its end
+    idx = np.clip(np.searchsorted(tf, t, side="right") - 1, 0, tf.size - 1)
+    return np.where(t >= tf[0], wf[idx], 0.0)
 
 
 def _step(spec: list[float] | None, t: np.ndarray, name: str) -> np.ndarray | None:
@@ -134,10 +148,20 @@ def _csv(resp: SimulationResponse, kept: list[str]) -> bytes:
     return buf.getvalue().encode()
 
 
+def _dc_gain(loop: Any, signal: str) -> float:
+    """The loop's steady-state gain from w to ``signal`` (nan when it cannot be evaluated)."""
+    try:
+        return float(loop.transfer("w", signal).dc_gain)
+    except (ValueError, ArithmeticError):
+        return math.nan
+
+
 def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None,
-             step: float = 1.0) -> dict[str, Any]:
+             step: float = 1.0, dc_gains: dict[str, float] | None = None) -> dict[str, Any]:
     """Final and peak values; for a step reference, the overshoot [%] and 2 % settling time [s] after it of
-    each of z and y that moved by at least 1 % of the step (a load's swing that returns to 0 has none)."""
+    each of z and y whose steady-state move is at least 1 % of the step: by the loop's DC gain from w when
+    it is finite (a load's swing, F(0) = 0, has none even when the run ends mid-swing), else by the run's
+    last sample."""
     final = {s: float(resp.signals[s][-1]) for s in kept} if resp.time.size else {}
     peak = {s: float(np.max(np.abs(resp.signals[s]))) for s in kept} if resp.time.size else {}
     metrics: dict[str, Any] = {}
@@ -147,7 +171,9 @@ def _summary(resp: SimulationResponse, kept: list[str], step_time: float | None,
             if sig not in resp.signals:
                 continue
             x = resp.signals[sig][resp.time >= start]
-            if abs(x[-1] - x[0]) >= 0.01 * abs(step):
+            gain = (dc_gains or {}).get(sig, math.nan)
+            moves = abs(gain) >= 0.01 if math.isfinite(gain) else abs(x[-1] - x[0]) >= 0.01 * abs(step)
+            if moves:
                 metrics[sig] = {"overshoot_percent": resp.overshoot(sig, start=start),
                                 "settling_time": _number(resp.settling_time(sig, start=start))}
     return {"final": final, "peak": peak, "step_response": metrics}
