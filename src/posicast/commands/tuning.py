@@ -123,8 +123,8 @@ def _tune_figures(args: argparse.Namespace, r: TuningResult) -> list[tuple[Figur
 
 
 def _json_number(x: Any) -> float | None:
-    """JSON has no NaN or inf: null."""
-    return float(x) if x is not None and math.isfinite(x) else None
+    """JSON has no NaN or inf: null (and no -0.0: 0.0)."""
+    return float(x) + 0.0 if x is not None and math.isfinite(x) else None
 
 
 def _tune_json(args: argparse.Namespace, r: TuningResult) -> dict[str, Any]:
