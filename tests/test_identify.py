@@ -107,6 +107,19 @@ def test_freq_method_and_free_decay() -> None:
     assert r.modes[0].zeta == pytest.approx(SEED_MODE.zeta, rel=0.1)
 
 
+def test_decay_refuses_an_input_that_moves_during_the_record() -> None:
+    """A ring-down fit cannot see the input: with a step in the middle of the record it gave 0.75 Hz for a
+    12 Hz mode. A moving u is refused (named); a constant u (a held step) is a free decay plus an offset."""
+    d = synthetic(SEED_MODE, "step", n=2000, noise=0.01, seed=4, period=1.0)
+    assert np.ptp(d.u) > 0
+    with pytest.raises(ValueError, match="method='decay' fits a free ring-down and ignores u"):
+        posicast.identify(d.t, d.u, d.y, method="decay")
+    ring = synthetic(SEED_MODE, "impulse", n=400, noise=0.01, seed=1)
+    held = np.ones(ring.y.size - 1)
+    r = posicast.identify(ring.t[1:], held, ring.y[1:], method="decay")
+    assert r.modes[0].omega == pytest.approx(SEED_MODE.omega, rel=3e-3)
+
+
 # ----------------------------------------------------------------------------- seed 002 eq. 26
 
 

@@ -206,6 +206,11 @@ def identify(t: Any, u: Any, y: Any, n_modes: int | str = 1, method: str = "oe",
     elif method == "psd":
         out = _fit_psd(yy, fs, n_modes, band=band, excitation_slope=excitation_slope)
     elif method == "decay":
+        if uu is not None and np.ptp(uu) > 1e-12 * max(float(np.max(np.abs(uu))), 1e-300):
+            # a ring-down model cannot see an input that moves during the record: its answer would be wrong
+            raise ValueError("method='decay' fits a free ring-down and ignores u, but u changes during the record "
+                             f"(from {float(np.min(uu)):.6g} to {float(np.max(uu)):.6g}); use method='oe', or pass "
+                             "u=None with the part of the record after the input stops")
         out = fit_decay(yy, fs, int(n_modes), covariance=covariance, offset=offset is not False, weights=weights)
     else:
         settings = _oe_settings(covariance, feedthrough, offset, initial_state, weights)
