@@ -22,6 +22,7 @@ import posicast
 from posicast.cli import main
 from posicast.report import format_column, format_number, load_plant, plant_spec, write_report
 from posicast.report.page import Page
+from posicast.testing import synthetic
 from posicast_reports.demo import EXAMPLE_LOG, EXAMPLE_PLANT, REPOSITORY, user_first
 from posicast_reports.html import Report
 
@@ -184,6 +185,22 @@ def test_report_refusals_write_nothing(tmp_path, capsys) -> None:
         captured = capsys.readouterr()
         assert captured.out == "" and captured.err.count("\n") == 1 and words in captured.err, captured.err
         assert not out.exists()
+
+
+def test_report_of_an_input_output_csv_points_to_calibrate(tmp_path, capsys) -> None:
+    """calibrate asks for --input/--output, which report does not have: report says where to go instead."""
+    d = synthetic(posicast.Mode.from_hz(28.0, 0.05), "step", n=400, seed=1)
+    io = tmp_path / "io.csv"
+    io.write_text("time,input,output\n" + "".join(f"{t:.6f},{u:.6g},{y:.6g}\n" for t, u, y in zip(d.t, d.u, d.y)))
+    with pytest.raises(ValueError) as lib:
+        posicast.calibrate(str(io))
+    assert "(--input, --output)" in str(lib.value)
+    out = tmp_path / "out"
+    assert main(["report", str(io), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"posicast: error: {io}: not a Klipper file; the report reads resonance tests; for an input/output "
+                   "record run 'posicast calibrate FILE --input COLUMN --output COLUMN'\n")
+    assert not out.exists()
 
 
 @pytest.mark.parametrize("data, words", [
