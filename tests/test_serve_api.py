@@ -479,3 +479,15 @@ def test_export_file_name_says_what_it_holds(client):
     assert names["json", True].endswith('filename="shaper_zvd_1000Hz_inverse.json"')
     r = client.post("/api/export", json={**body, "name": "x_axis", "inverse": True})
     assert r.headers["content-disposition"].endswith('filename="x_axis_inverse.h"')
+
+
+def test_design_band_that_reaches_the_search_limit_says_so(client):
+    """ZVD(1 Hz, zeta 0.5) * ZVD(95 Hz): for the 95 Hz mode V stays below 5 % up to insensitivity's
+    max_ratio (10 x the mode): the band's upper end is the search range's, not a crossing."""
+    out = _design(client, "zvd", modes=((1.0, 0.5), (95.0, 0.02))).json()
+    S = pc.design("zvd", pc.Mode.from_hz(1.0, 0.5)) * pc.design("zvd", pc.Mode.from_hz(95.0, 0.02))
+    for band, m in zip(out["insensitivity"], S.modes):
+        ins = pc.insensitivity(S, 0.05, mode=m)
+        assert band["at_limit"] == ins.at_limit and band["width"] == pytest.approx(ins.width, rel=1e-12)
+    assert out["insensitivity"][1]["at_limit"] is True and out["insensitivity"][1]["high"] == pytest.approx(10.0)
+    assert _design(client, "zvd").json()["insensitivity"][0]["at_limit"] is False

@@ -177,7 +177,7 @@ def design_view(form: Mapping[str, Any]) -> dict[str, Any]:
     for m in d.modes:
         ins = insensitivity(d.S, vtol, mode=m, reference=d.reference)
         out["insensitivity"].append({"freq_hz": m.freq_hz, "zeta": m.zeta, "width": ins.width, "low": ins.low,
-                                     "high": ins.high, "vtol": vtol,
+                                     "high": ins.high, "vtol": vtol, "at_limit": bool(ins.at_limit),
                                      "residual": float(residual_vibration(d.S, m.omega, m.zeta, d.reference))})
     if d.sample_rate is not None:
         out["taps"] = _taps(d)

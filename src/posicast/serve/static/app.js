@@ -191,7 +191,9 @@ async function designRun() {
     (r.more ? `<p class="muted">… ${r.more} more</p>` : "");
   $("d-ins").innerHTML = table(["mode", "residual at the mode", `band with V ≤ ${fmt(100 * r.insensitivity[0].vtol, 3)} %`, "width I"],
     r.insensitivity.map((b) => ({ cells: [`${fmt(b.freq_hz, 4)} Hz, ζ ${fmt(b.zeta, 3)}`, pct(b.residual),
-      b.width > 0 ? `${fmt(b.low * b.freq_hz, 4)} – ${fmt(b.high * b.freq_hz, 4)} Hz` : "none", fmt(b.width, 4)] })), "num");
+      b.width > 0 ? `${fmt(b.low * b.freq_hz, 4)} – ${fmt(b.high * b.freq_hz, 4)} Hz` +
+        (b.at_limit ? " (the search range's end: the band goes on)" : "") : "none",
+      (b.at_limit ? "≥ " : "") + fmt(b.width, 4)] })), "num");
   if (r.taps) {
     const t = r.taps;
     $("d-taps-method").textContent = `${t.n_taps} tap${t.n_taps === 1 ? "" : "s"} at ${fmt(t.sample_rate)} Hz: ${t.method}; sum ${fmt(t.sum, 6)}` +
