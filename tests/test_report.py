@@ -238,6 +238,10 @@ def test_one_number_format_per_column() -> None:
     assert format_column([0.0, 0.25]) == ["0.0000", "0.2500"]
     assert format_column([0.0, 2.4e-8, 0.5, 22.52]) == ["0", "2.400e-08", "0.5000", "22.52"]
     assert format_column([1.5, 123456.0, 0.0123]) == ["1.500", "1.235e+05", "0.01230"]
+    # one decimal, a value that needs more: two significant digits for all (was 1.5567 -> "2", 0.127 -> "0.1")
+    assert format_column([1.5567, 0.0, 0.127, 0.0227], 1) == ["1.6", "0", "0.13", "0.023"]
+    # whole numbers stay whole past 1e5 (was "1.2e+05" beside "60116" in the max_accel column)
+    assert format_column([60116.0, 123456.0, 15542.0], 0) == ["60116", "123456", "15542"]
     assert format_column([float("nan"), None, float("-inf"), 2]) == ["–", "–", "−∞", "2"]
     assert format_number(-3e-13) == "< 1e-12"
     page = Page("t")
