@@ -146,7 +146,9 @@ async function machineFiles(fileList) {
 
 function machineInit() {
   $("m-file").addEventListener("change", (e) => {
-    if (e.target.files.length) machineFiles(e.target.files);
+    if (!e.target.files.length) return;
+    machineFiles(e.target.files);
+    e.target.value = "";  // choosing the same file again (edited, or with new columns) fires "change" again
   });
   const drop = $("m-drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
