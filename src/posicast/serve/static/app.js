@@ -146,9 +146,7 @@ async function machineFiles(fileList) {
 
 function machineInit() {
   $("m-file").addEventListener("change", (e) => {
-    if (!e.target.files.length) return;
-    machineFiles(e.target.files);
-    e.target.value = "";  // choosing the same file again (edited, or with new columns) fires "change" again
+    if (e.target.files.length) machineFiles(e.target.files);
   });
   const drop = $("m-drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
