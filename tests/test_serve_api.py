@@ -491,3 +491,12 @@ def test_design_band_that_reaches_the_search_limit_says_so(client):
         assert band["at_limit"] == ins.at_limit and band["width"] == pytest.approx(ins.width, rel=1e-12)
     assert out["insensitivity"][1]["at_limit"] is True and out["insensitivity"][1]["high"] == pytest.approx(10.0)
     assert _design(client, "zvd").json()["insensitivity"][0]["at_limit"] is False
+
+
+def test_loop_response_step_messages_name_the_page_knob(client):
+    """simulate's message names t and substeps, which the page does not show: it adds 'Simulate until'."""
+    long = client.post("/api/loop", json={**LOOP, "G_delay": "0", "t_end": "1e6"}).json()
+    assert long["verdict"]["stable"] is True
+    assert "internal steps" in long["responses_error"]
+    assert long["responses_error"].endswith("(the page simulates 1500 points up to 'Simulate until' = 1e+06 s: a "
+                                            "shorter time gives a finer step and fewer steps)")
