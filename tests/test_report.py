@@ -22,6 +22,7 @@ import posicast
 from posicast.cli import main
 from posicast.report import format_column, format_number, load_plant, plant_spec, write_report
 from posicast.report.page import Page
+from posicast.testing import synthetic
 from posicast_reports.demo import EXAMPLE_LOG, EXAMPLE_PLANT, REPOSITORY, user_first
 from posicast_reports.html import Report
 
@@ -186,6 +187,22 @@ def test_report_refusals_write_nothing(tmp_path, capsys) -> None:
         assert not out.exists()
 
 
+def test_report_of_an_input_output_csv_points_to_calibrate(tmp_path, capsys) -> None:
+    """calibrate asks for --input/--output, which report does not have: report says where to go instead."""
+    d = synthetic(posicast.Mode.from_hz(28.0, 0.05), "step", n=400, seed=1)
+    io = tmp_path / "io.csv"
+    io.write_text("time,input,output\n" + "".join(f"{t:.6f},{u:.6g},{y:.6g}\n" for t, u, y in zip(d.t, d.u, d.y)))
+    with pytest.raises(ValueError) as lib:
+        posicast.calibrate(str(io))
+    assert "(--input, --output)" in str(lib.value)
+    out = tmp_path / "out"
+    assert main(["report", str(io), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"posicast: error: {io}: not a Klipper file; the report reads resonance tests; for an input/output "
+                   "record run 'posicast calibrate FILE --input COLUMN --output COLUMN'\n")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("data, words", [
     ({"plant": {"num": [1, 0, 0], "den": [1, 1]}}, "plant must be proper"),
     ({"plant": {"num": [1], "den": [0, 0]}}, "plant.den must not be all zeros"),
@@ -221,6 +238,10 @@ def test_one_number_format_per_column() -> None:
     assert format_column([0.0, 0.25]) == ["0.0000", "0.2500"]
     assert format_column([0.0, 2.4e-8, 0.5, 22.52]) == ["0", "2.400e-08", "0.5000", "22.52"]
     assert format_column([1.5, 123456.0, 0.0123]) == ["1.500", "1.235e+05", "0.01230"]
+    # one decimal, a value that needs more: two significant digits for all (was 1.5567 -> "2", 0.127 -> "0.1")
+    assert format_column([1.5567, 0.0, 0.127, 0.0227], 1) == ["1.6", "0", "0.13", "0.023"]
+    # whole numbers stay whole past 1e5 (was "1.2e+05" beside "60116" in the max_accel column)
+    assert format_column([60116.0, 123456.0, 15542.0], 0) == ["60116", "123456", "15542"]
     assert format_column([float("nan"), None, float("-inf"), 2]) == ["–", "–", "−∞", "2"]
     assert format_number(-3e-13) == "< 1e-12"
     page = Page("t")

@@ -24,7 +24,7 @@ from posicast.firmware import Klipper
 from posicast.serve import app as app_module
 from posicast.serve.app import create_app
 from posicast.simulation.streaming import discretize
-from posicast.testing.synthetic_data import klipper_log
+from posicast.testing.synthetic_data import klipper_log, klipper_resonances, synthetic
 
 ROOT = Path(__file__).resolve().parents[1]
 PSD = ROOT / "tests" / "data" / "real" / "bassco_v24_calibration_data_y_20230306.csv"  # Klipper calibration_data
@@ -141,7 +141,8 @@ def test_machine_hostile_inputs_answer_400_with_the_message(client, tmp_path):
     assert got == lib.splitlines()[0].replace(str(tmp_path / "notes.csv"), "notes.csv")
     bad = {"nan 0.05": "modes line 1: frequency must be finite, got nan",
            "-5 0.05": "modes line 1: frequency must be > 0, got -5",
-           "45 1.0": _raised(pc.Mode.from_hz, 45.0, 1.0),
+           "45 1.0": "modes line 1: damping must be in [0, 1), got 1 (an underdamped mode)",
+           "9e5 0.05": "modes line 1: frequency must be <= 100000 Hz for a firmware's shaper, got 900000",
            "45": "modes line 1 must be 'frequency_Hz damping', got '45'",
            "": "modes must be one 'frequency_Hz damping' pair per line, got nothing",
            "\n".join(["45 0.05"] * 7): "modes: at most 6 modes, got 7"}
@@ -162,6 +163,11 @@ def test_machine_no_resonance_is_a_message(client, tmp_path):
     path = klipper_log(tmp_path / "quiet_x.csv", [], seed=2, test="none")
     lib = _raised(pc.calibrate, str(path))
     assert _error(client.post("/api/machine", json=_upload(path))) == lib.splitlines()[0].replace(str(path), path.name)
+    # a PSD file of noise alone: the library's message is about the spectrum; the page adds which file
+    psd = klipper_resonances(tmp_path / "resonances_x_quiet.csv", [], test="none", seed=3)
+    lib = _raised(pc.calibrate, str(psd))
+    assert lib.startswith("no resonance found in 6.2-134.4 Hz")
+    assert _error(client.post("/api/machine", json=_upload(psd))) == "resonances_x_quiet.csv: " + lib.splitlines()[0]
 
 
 # ---------------------------------------------------------------- design
@@ -405,3 +411,92 @@ def test_readme_example():
     runner = doctest.DocTestRunner()
     runner.run(test)
     assert runner.failures == 0 and runner.tries >= 5
+
+
+# ---------------------------------------------------------------- second look (issue #20 review)
+def test_machine_io_csv_messages_name_the_page_fields_and_no_empty_spectrum(client, tmp_path):
+    d = synthetic(pc.Mode.from_hz(28.0, 0.05), "step", n=2000, noise=0.01, seed=1)
+    text = "time,input,output\n" + "".join(f"{t:.6f},{u:.6g},{y:.6g}\n" for t, u, y in zip(d.t, d.u, d.y))
+    (tmp_path / "io.csv").write_text(text)
+    lib = _raised(pc.calibrate, str(tmp_path / "io.csv"))
+    assert "(--input, --output)" in lib  # the command line's words; the page has fields
+    got = _error(client.post("/api/machine", json={"file": {"name": "io.csv", "text": text}}))
+    assert got == "io.csv: not a Klipper file; give the input and output columns " \
+                  "(the Input column and Output column fields)"
+    out = client.post("/api/machine", json={"file": {"name": "io.csv", "text": text}, "input": "input",
+                                            "output": "output"}).json()
+    cal = pc.calibrate(str(tmp_path / "io.csv"), input="input", output="output")
+    assert out["config"] == "\n".join(cal.config)
+    assert out["files"][0]["modes"][0]["freq_hz"] == pytest.approx(cal.modes[0].freq_hz, rel=1e-12)
+    assert abs(out["files"][0]["modes"][0]["freq_hz"] - 28.0) < 0.2  # the true mode
+    assert out["notes"] == ["the axis of io.csv is not in the file name: taken as x (choose the Axis)"]
+    assert "psd" not in out["plots"]  # fitted in time: no spectrum to draw (was an empty frame)
+
+
+def test_machine_two_axes_label_each_curve_with_its_axis(client):
+    real = ROOT / "tests" / "data" / "real"
+    files = [{"name": p.name, "text": p.read_text()} for p in
+             (real / "bassco_v0_resonances_x_20220703.csv", real / "bassco_v0_resonances_y_20220703.csv")]
+    out = client.post("/api/machine", json={"files": files}).json()
+    for axis in "xy":
+        assert f"{axis}: measured PSD" in out["plots"]["psd"]
+        rec = next(r for r in out["recommendations"] if r["axis"] == axis)
+        assert f"{axis}: {rec['best']}  (recommended)" in out["plots"]["candidates"]
+
+
+def test_machine_vibration_target_below_one_percent_is_written_as_given(client):
+    out = client.post("/api/machine", json={"file": {"name": PSD.name, "text": PSD.read_text()},
+                                            "vtol": "0.001"}).json()
+    cal = pc.calibrate(str(PSD), vtol=0.001)
+    assert out["config"] == "\n".join(cal.config)
+    assert "keeps the worst case within 0.1 %" in out["config"]  # was "within 0 %"
+
+
+def test_design_notch_taps_at_a_sample_rate(client):
+    """An IIR shaper lasts forever; its taps at a rate are the lumped part plus the (b, a) section
+    (was refused: 'spreads the notch shaper over inf samples')."""
+    out = _design(client, "notch", sample_rate="1000").json()
+    D = discretize(pc.design("notch", pc.Mode.from_hz(40.0, 0.05)), 1000.0)
+    assert out["duration"] is None and out["taps"]["iir"] is True
+    assert out["taps"]["n_taps"] == int(np.count_nonzero(D.taps)) == 1
+    r = client.post("/api/export", json={"kind": "notch", "modes": [{"freq_hz": "40", "zeta": "0.05"}],
+                                         "sample_rate": "1000", "format": "json"})
+    assert r.status_code == 200, r.text
+    S = pc.design("notch", pc.Mode.from_hz(40.0, 0.05))
+    assert json.loads(r.text) == json.loads(pc.export_shaper(S, 1000.0, "json", name="shaper"))
+
+
+def test_export_file_name_says_what_it_holds(client):
+    body = {"kind": "zvd", "modes": [{"freq_hz": "45", "zeta": "0.05"}], "sample_rate": "1000"}
+    names = {}
+    for fmt in ("c", "json"):
+        for inverse in (False, True):
+            r = client.post("/api/export", json={**body, "format": fmt, "inverse": inverse})
+            assert r.status_code == 200, r.text
+            names[fmt, inverse] = r.headers["content-disposition"]
+    assert names["c", False].endswith('filename="shaper_zvd_1000Hz.h"')
+    assert names["c", True].endswith('filename="shaper_zvd_1000Hz_inverse.h"')
+    assert names["json", True].endswith('filename="shaper_zvd_1000Hz_inverse.json"')
+    r = client.post("/api/export", json={**body, "name": "x_axis", "inverse": True})
+    assert r.headers["content-disposition"].endswith('filename="x_axis_inverse.h"')
+
+
+def test_design_band_that_reaches_the_search_limit_says_so(client):
+    """ZVD(1 Hz, zeta 0.5) * ZVD(95 Hz): for the 95 Hz mode V stays below 5 % up to insensitivity's
+    max_ratio (10 x the mode): the band's upper end is the search range's, not a crossing."""
+    out = _design(client, "zvd", modes=((1.0, 0.5), (95.0, 0.02))).json()
+    S = pc.design("zvd", pc.Mode.from_hz(1.0, 0.5)) * pc.design("zvd", pc.Mode.from_hz(95.0, 0.02))
+    for band, m in zip(out["insensitivity"], S.modes):
+        ins = pc.insensitivity(S, 0.05, mode=m)
+        assert band["at_limit"] == ins.at_limit and band["width"] == pytest.approx(ins.width, rel=1e-12)
+    assert out["insensitivity"][1]["at_limit"] is True and out["insensitivity"][1]["high"] == pytest.approx(10.0)
+    assert _design(client, "zvd").json()["insensitivity"][0]["at_limit"] is False
+
+
+def test_loop_response_step_messages_name_the_page_knob(client):
+    """simulate's message names t and substeps, which the page does not show: it adds 'Simulate until'."""
+    long = client.post("/api/loop", json={**LOOP, "G_delay": "0", "t_end": "1e6"}).json()
+    assert long["verdict"]["stable"] is True
+    assert "internal steps" in long["responses_error"]
+    assert long["responses_error"].endswith("(the page simulates 1500 points up to 'Simulate until' = 1e+06 s: a "
+                                            "shorter time gives a finer step and fewer steps)")

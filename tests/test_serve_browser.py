@@ -21,6 +21,7 @@ import pytest
 
 import posicast as pc
 from posicast.serve.app import create_app
+from posicast.testing import synthetic
 
 ROOT = Path(__file__).resolve().parents[1]
 LOG = ROOT / "tests" / "data" / "real" / "bassco_v0_resonances_x_20220703.csv"  # Klipper PSD file, bassco's Voron 0
@@ -105,6 +106,28 @@ def test_machine_tab_loads_a_klipper_log_and_shows_the_library_config(page):
     assert best[0] == rec.setting.shaper_type.written and float(best[1]) == pytest.approx(rec.setting.freq, rel=1e-3)
     assert page.locator("#m-psd svg").count() == 1 and page.locator("#m-cand-plot svg").count() == 1
     _shot(page, "machine")
+
+
+def test_machine_tab_error_clears_the_old_answer_and_io_columns_rerun(page, tmp_path):
+    """After a good log, a file the library refuses leaves no old config lines to copy beside the error;
+    typing the input/output columns then reruns the same file (re-choosing a file fires no event)."""
+    page.set_input_files("#m-file", str(LOG))
+    page.wait_for_function("document.getElementById('m-config').value.length > 0")
+    d = synthetic(pc.Mode.from_hz(28.0, 0.05), "step", n=2000, noise=0.01, seed=1)
+    io = tmp_path / "io.csv"
+    io.write_text("time,input,output\n" + "".join(f"{t:.6f},{u:.6g},{y:.6g}\n" for t, u, y in zip(d.t, d.u, d.y)))
+    page.set_input_files("#m-file", str(io))
+    page.wait_for_selector("#m-status.error")
+    assert page.inner_text("#m-status") == ("io.csv: not a Klipper file; give the input and output columns "
+                                            "(the Input column and Output column fields)")
+    assert page.input_value("#m-config") == "" and page.inner_text("#m-candidates") == ""
+    assert page.locator("#m-psd svg").count() == 0
+    page.fill("#m-input", "input")
+    page.fill("#m-output", "output")
+    page.locator("#m-output").dispatch_event("change")
+    page.wait_for_function("document.getElementById('m-config').value.length > 0")
+    cal = pc.calibrate(str(io), input="input", output="output")
+    assert page.input_value("#m-config").splitlines() == cal.config
 
 
 def test_design_tab_slider_updates_the_impulses_to_the_library_design(page):

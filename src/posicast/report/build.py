@@ -60,6 +60,11 @@ def is_plant_file(path: str | os.PathLike[str]) -> bool:
     return v.path_text(path, "path").lower().endswith(".json")
 
 
+#: calibrate's advice for an input/output CSV, and what the report (which reads resonance tests only) says instead.
+_IO_HINT = "give the input and output columns (--input, --output)"
+_IO_REPORT = ("the report reads resonance tests; for an input/output record run "
+              "'posicast calibrate FILE --input COLUMN --output COLUMN'")
+
 INTRO = ("<p>Made by <code>posicast report</code>. Each result is printed with the command and the Python code that "
          "give it; the numbers in a table column share one format (<code>&lt; 1e-12</code>: a value at rounding "
          "level, <code>–</code>: none).</p>")
@@ -116,7 +121,12 @@ def write_report(data: str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
         names = [firmware] if isinstance(firmware, str) else v.sequence(firmware, "firmware", min_len=1)
         fws = [f.strip().lower() for name in names for f in v.instance_of(name, str, "firmware", "firmware names "
                                                                            "(str)").split(",") if f.strip()]
-        cal = calibrate(texts, firmware=fws, axis=axis, progress=progress)
+        try:
+            cal = calibrate(texts, firmware=fws, axis=axis, progress=progress)
+        except ValueError as exc:  # the report reads resonance tests only: no --input/--output to point at
+            if type(exc) is not ValueError or _IO_HINT not in str(exc):
+                raise
+            raise ValueError(str(exc).replace(_IO_HINT, _IO_REPORT)) from None
         names = ", ".join(Path(p).name for p in texts)
         page = Page(f"posicast report: {names}")
         machine_part(page, cal, texts, firmware=fws, axis=axis,

@@ -107,13 +107,14 @@ def column_style(values: Sequence[Any], digits: int = 4) -> str:
     --------
     >>> column_style([0.5, 1.25]), column_style([0.5, 2e-8]), column_style([0.5, 0.0, 1e-17])
     ('fixed', 'sig', 'fixed')
-    >>> column_style([0.174, 0.0015, 1.23], digits=3)
-    'fixed'
+    >>> column_style([0.174, 0.0015, 1.23], digits=3), column_style([60116.0, 123456.0], digits=0)
+    ('fixed', 'fixed')
     """
+    big = 1e5 if digits else 1e12  # whole numbers (max_accel [mm/s²]) stay whole: 123456 beside 60116, not 1.2e+05
     for x in values:
         if _is_float(x) and math.isfinite(float(x)):
             a = abs(float(x))
-            if a >= TINY and (a < 0.5 * 10.0 ** -digits or a >= 1e5):
+            if a >= TINY and (a < 0.5 * 10.0 ** -digits or a >= big):
                 return "sig"
     return "fixed"
 
@@ -133,6 +134,11 @@ def format_column(values: Sequence[Any], digits: int = 4) -> list[str]:
     ['0.0000', '0.2500', '1.5000']
     >>> format_column([0.0, 2.4e-08, 22.52, "n/a", 3])
     ['0', '2.400e-08', '22.52', 'n/a', '3']
+
+    A column of one decimal that must show 0.0227 keeps two significant digits (not 1.56 -> ``2``):
+
+    >>> format_column([1.5567, 0.0, 0.127, 0.0227], digits=1)
+    ['1.6', '0', '0.13', '0.023']
     """
     values = v.sequence(values, "values")
     digits = v.integer_in_range(digits, "digits", 0, 17)
@@ -141,9 +147,10 @@ def format_column(values: Sequence[Any], digits: int = 4) -> list[str]:
     plain_zero = style == "sig" or any(0.0 < abs(x) < TINY for x in floats)
     zero = "0" if plain_zero else f"{0.0:.{digits}f}"
     out = []
+    sig = max(digits, 2)  # significant digits when the column's decimals would hide a value
     for x in values:
         if x is None or _is_float(x):
-            out.append(format_number(x, style, digits, zero))
+            out.append(format_number(x, style, sig if style == "sig" else digits, zero))
         else:
             out.append(html.escape(str(x)))
     return out

@@ -135,7 +135,8 @@ def _taps(d: _Designed) -> dict[str, Any]:
         w = A
         iir = False
     else:
-        span = d.S.duration * fs
+        T = d.S.impulses[0]  # an IIR part (notch) lasts forever: its taps are the lumped part, the rest is (b, a)
+        span = (d.S.duration if math.isfinite(d.S.duration) else float(T.max(initial=0.0))) * fs
         if span > MAX_SPAN:
             raise ValueError(f"sample_rate {fs:g} Hz spreads the {d.S.name} shaper over {span:.3g} samples; "
                              f"the designer handles at most {MAX_SPAN:g} (lower the sample rate)")
@@ -176,7 +177,7 @@ def design_view(form: Mapping[str, Any]) -> dict[str, Any]:
     for m in d.modes:
         ins = insensitivity(d.S, vtol, mode=m, reference=d.reference)
         out["insensitivity"].append({"freq_hz": m.freq_hz, "zeta": m.zeta, "width": ins.width, "low": ins.low,
-                                     "high": ins.high, "vtol": vtol,
+                                     "high": ins.high, "vtol": vtol, "at_limit": bool(ins.at_limit),
                                      "residual": float(residual_vibration(d.S, m.omega, m.zeta, d.reference))})
     if d.sample_rate is not None:
         out["taps"] = _taps(d)
@@ -234,7 +235,10 @@ def export_view(form: Mapping[str, Any]) -> tuple[str, str, str]:
     v.instance_of(inverse, bool, "inverse", "true or false")
     S = d.sampled if d.sampled is not None else d.S
     text = export_shaper(S, d.sample_rate, fmt, name=name, form=layout, inverse=inverse)
-    stem = name if _C_NAME.match(name) else "shaper"
+    # the file is named by the C name the user chose; left at "shaper", it says what it holds (kind, rate), and
+    # an inverse never takes the forward shaper's name
+    stem = name if _C_NAME.match(name) and name != "shaper" else f"shaper_{d.kind}_{d.sample_rate:g}Hz"
+    stem = re.sub(r"[^A-Za-z0-9_-]", "_", stem) + ("_inverse" if inverse else "")
     if fmt == "json":
         json.loads(text)  # the export is JSON: a broken one is a bug, not a download
         return f"{stem}.json", text, "application/json"

@@ -110,5 +110,6 @@ def mode_lines(text: str) -> list[Mode]:
             raise ValueError(f"modes line {k} must be 'frequency_Hz damping', got {' '.join(row)!r}")
         f = number({"f": row[0]}, "f", f"modes line {k}: frequency")
         z = number({"z": row[1]}, "z", f"modes line {k}: damping")
+        z = v.real_in_range(z, f"modes line {k}: damping", 0.0, 1.0, hi_open=True, hint=" (an underdamped mode)")
         out.append(Mode.from_hz(v.positive(f, f"modes line {k}: frequency"), z))
     return out

@@ -149,7 +149,11 @@ def loop_view(form: Mapping[str, Any]) -> dict[str, Any]:
     try:
         _responses(out, loop, t_end)
     except ValueError as exc:  # e.g. an improper controller: the verdict stands, the responses cannot be run
-        out["responses_error"] = str(exc).splitlines()[0]
+        msg = str(exc).splitlines()[0]
+        if "internal rate" in msg or "internal steps" in msg:  # the page's knob is the time span, not t or substeps
+            msg += (f" (the page simulates {MAX_POINTS} points up to 'Simulate until' = {t_end:.4g} s: "
+                    "a shorter time gives a finer step and fewer steps)")
+        out["responses_error"] = msg
     return out
 
 

@@ -41,6 +41,11 @@ FIRMWARE_CHOICES: dict[str, tuple[str, str]] = {
 MAX_UPLOAD = 200_000_000
 #: Most files at once (probe points, print masses, axes).
 MAX_FILES = 16
+#: Highest mode typed by hand [Hz] (the firmware scoring grid ends at 1 MHz; printer modes are below 1 kHz).
+MAX_TYPED_HZ = 1e5
+#: The command line's options named in the library's messages, as the page's fields.
+_FIELDS = (("(--input, --output)", "(the Input column and Output column fields)"),
+           ("(use --axis)", "(choose the Axis)"))
 
 
 def machine_view(form: Mapping[str, Any]) -> dict[str, Any]:
@@ -65,6 +70,10 @@ def machine_view(form: Mapping[str, Any]) -> dict[str, Any]:
                                 forms.text_field(form, "input") or None, forms.text_field(form, "output") or None)
         return _calibration_view(cal)
     modes = forms.mode_lines(forms.text_field(form, "modes"))
+    for k, m in enumerate(modes, 1):  # the firmware's scoring grid ends at 1 MHz, with the drift on top
+        if m.freq_hz > MAX_TYPED_HZ:
+            raise ValueError(f"modes line {k}: frequency must be <= {MAX_TYPED_HZ:g} Hz for a firmware's shaper, "
+                             f"got {m.freq_hz:g}")
     fw: Firmware = Klipper(version) if fw_name == "klipper" else FIRMWARES[fw_name]()
     zero = [Interval((m.omega, m.omega), (m.zeta, m.zeta)) for m in modes]  # the margin widens them
     rec = recommend_setting(fw, mode_boxes(modes, zero, None, margin), None, vtol=vtol, axis=axis or "x",
@@ -127,6 +136,8 @@ def _calibrate_upload(uploads: list[tuple[str, str]], fw_name: str, version: str
                             vtol=vtol, input=input_col, output=output_col)
         except (ValueError, TypeError) as exc:  # the library's message, about the user's files, not the copies
             exc.args = tuple(_user_names(a, paths) if isinstance(a, str) else a for a in exc.args)
+            if len(uploads) == 1 and exc.args and isinstance(exc.args[0], str) and uploads[0][0] not in exc.args[0]:
+                exc.args = (f"{uploads[0][0]}: {exc.args[0]}",) + exc.args[1:]  # which file (the page may hold several)
             raise
     for fr in cal.files:
         fr.path = paths.get(fr.path, fr.path)
@@ -135,8 +146,11 @@ def _calibrate_upload(uploads: list[tuple[str, str]], fw_name: str, version: str
 
 
 def _user_names(text: str, paths: Mapping[str, str]) -> str:
+    """``text`` with the temporary copies' paths as the user's file names, command-line options as fields."""
     for path, name in paths.items():
         text = text.replace(path, name).replace(os.path.basename(path), name)
+    for option, field in _FIELDS:
+        text = text.replace(option, field)
     return text
 
 
@@ -185,20 +199,25 @@ def _calibration_view(cal: Calibration) -> dict[str, Any]:
 
 
 def _spectrum_plot(plots: dict[str, Any], cal: Calibration) -> None:
-    """Measured PSD, the fitted model and each mode's 95 % frequency interval."""
+    """Measured PSD, the fitted model and each mode's 95 % frequency interval (no plot when no file has a
+    spectrum: an input/output record is fitted in time)."""
+    if not any(fr.resonance is not None or (fr.identification is not None and fr.identification.freqs is not None)
+               for fr in cal.files):
+        return
     with svg_figure(plots, "psd", height=4.2) as (fig, ax):
         for k, fr in enumerate(cal.files):
             c = COLOURS[k % len(COLOURS)]
+            tag = f"{fr.axis or '?'}: " if len(cal.files) > 1 else ""
             ident = fr.identification
             if ident is None or ident.freqs is None:
                 if fr.resonance is not None:
                     sp = fr.resonance.spectrum
-                    ax.semilogy(sp.freqs, np.maximum(sp.psd, 1e-300), ".", ms=2, color=c, label="measured (no mode)")
+                    ax.semilogy(sp.freqs, np.maximum(sp.psd, 1e-300), ".", ms=2, color=c, label=tag + "measured (no mode)")
                 continue
-            ax.semilogy(ident.freqs, ident.spectrum, ".", ms=3, color=c, label="measured PSD")
-            ax.semilogy(ident.freqs, ident.y_fit, "-", lw=1.3, color=c, alpha=0.8, label="fitted model")
+            ax.semilogy(ident.freqs, ident.spectrum, ".", ms=3, color=c, label=tag + "measured PSD")
+            ax.semilogy(ident.freqs, ident.y_fit, "-", lw=1.3, color=c, alpha=0.8, label=tag + "fitted model")
             for j, (m, iv) in enumerate(zip(ident.modes, ident.intervals)):
-                ax.axvspan(*iv.freq_hz, color=c, alpha=0.18, label="95 % interval" if j == 0 else None)
+                ax.axvspan(*iv.freq_hz, color=c, alpha=0.18, label=tag + "95 % interval" if j == 0 else None)
                 ax.axvline(m.freq_hz, color=c, lw=0.7, ls=":")
         ax.set_xlabel("frequency [Hz]")
         ax.set_ylabel("PSD [(mm/s²)²/Hz]")
@@ -224,12 +243,13 @@ def _candidate_plot(plots: dict[str, Any], recs: list[Recommendation], modes: li
             ax.patch.set_visible(False)
         k = 0
         for rec in recs:
+            tag = f"{rec.axis}: " if len(recs) > 1 and rec.axis else ""
             for c in rec.per_type.values():
                 A, T = c.setting.impulses
                 V = vibration_grid(A, T[None, :], f, np.asarray(KLIPPER_TEST_DAMPING))[0].max(axis=1)
                 best = c.setting == rec.best.setting
                 ax.plot(f, 100 * V, "-", color=COLOURS[k % len(COLOURS)], lw=2.2 if best else 1.0,
-                        label=c.setting.describe() + ("  (recommended)" if best else ""))
+                        label=tag + c.setting.describe() + ("  (recommended)" if best else ""))
                 k += 1
         for m in modes:
             ax.axvline(m.freq_hz, color="k", lw=0.7, ls=":")

@@ -56,10 +56,24 @@ async function post(tab, path, body, { download = false } = {}) {
     let msg = "HTTP " + resp.status;
     try { msg = (await resp.json()).error || msg; } catch (e) { /* not JSON */ }
     status(tab, msg, "error");
+    if (!download) clearResults(tab);  // never the last answer beside an error about new input
     return null;
   }
   status(tab, `done in ${((performance.now() - t0) / 1000).toFixed(1)} s`, "ok");
   return download ? resp : resp.json();
+}
+
+// The results a tab shows; emptied when a request fails, so that an old answer (config lines to copy, a
+// "stable" verdict) is never left beside the error about the new input.  The design tab keeps its last
+// design while a slider or a number is being edited (its status line says what is wrong).
+const RESULTS = {
+  m: ["m-modes-table", "m-candidates", "m-notes", "m-psd", "m-cand-plot"],
+  l: ["l-verdict", "l-poles", "l-metrics", "l-spectrum", "l-step", "l-load"],
+};
+function clearResults(tab) {
+  for (const id of RESULTS[tab] || []) $(id).innerHTML = "";
+  if (tab === "m") $("m-config").value = "";
+  if (tab === "l") $("l-verdict").className = "verdict";
 }
 
 // ---- tabs ----
@@ -108,7 +122,8 @@ async function machineRun(body) {
   }
   $("m-candidates").innerHTML = html;
   $("m-notes").innerHTML = notes.map((n) => `<li>${esc(n)}</li>`).join("");
-  $("m-psd").innerHTML = r.plots.psd || "<p class='muted'>No measured spectrum for typed modes.</p>";
+  $("m-psd").innerHTML = r.plots.psd || "<p class='muted'>No measured spectrum (modes typed by hand, or an " +
+    "input/output record fitted in time).</p>";
   $("m-cand-plot").innerHTML = r.plots.candidates || "";
 }
 
@@ -130,7 +145,9 @@ async function machineFiles(fileList) {
 }
 
 function machineInit() {
-  $("m-file").addEventListener("change", (e) => { if (e.target.files.length) machineFiles(e.target.files); });
+  $("m-file").addEventListener("change", (e) => {
+    if (e.target.files.length) machineFiles(e.target.files);
+  });
   const drop = $("m-drop");
   drop.addEventListener("dragover", (e) => { e.preventDefault(); drop.classList.add("over"); });
   drop.addEventListener("dragleave", () => drop.classList.remove("over"));
@@ -139,10 +156,10 @@ function machineInit() {
     if (e.dataTransfer.files.length) machineFiles(e.dataTransfer.files);
   });
   $("m-run-modes").addEventListener("click", () => { lastFiles = null; machineRun({ ...machineFields(), modes: $("m-modes").value }); });
-  for (const id of ["m-firmware", "m-axis", "m-margin", "m-vtol"]) {
+  for (const id of ["m-firmware", "m-axis", "m-margin", "m-vtol", "m-input", "m-output"]) {
     $(id).addEventListener("change", () => {
       if (lastFiles) machineRun({ ...machineFields(), files: lastFiles });
-      else if ($("m-config").value) machineRun({ ...machineFields(), modes: $("m-modes").value });
+      else if ($("m-config").value && $("m-modes").value.trim()) machineRun({ ...machineFields(), modes: $("m-modes").value });
     });
   }
   $("m-copy").addEventListener("click", async () => {
@@ -167,16 +184,19 @@ async function designRun() {
   const r = await post("d", "/api/design", designBody());
   if (!r) return;
   $("d-summary").textContent = `${r.name}: ${r.n_impulses} impulse${r.n_impulses === 1 ? "" : "s"}, ` +
-    `duration ${fmt(1000 * r.duration, 5)} ms` + (r.note ? ` (${r.note})` : "");
+    (r.duration === null ? "duration ∞" : `duration ${fmt(1000 * r.duration, 5)} ms`) +
+    (r.note ? ` (${r.note})` : "");
   $("d-impulses").innerHTML = table(["#", "time [s]", "amplitude"],
     r.impulses.map((p, i) => ({ cells: [String(i + 1), fmt(p[0], 6), fmt(p[1], 6)] })), "num") +
     (r.more ? `<p class="muted">… ${r.more} more</p>` : "");
   $("d-ins").innerHTML = table(["mode", "residual at the mode", `band with V ≤ ${fmt(100 * r.insensitivity[0].vtol, 3)} %`, "width I"],
     r.insensitivity.map((b) => ({ cells: [`${fmt(b.freq_hz, 4)} Hz, ζ ${fmt(b.zeta, 3)}`, pct(b.residual),
-      b.width > 0 ? `${fmt(b.low * b.freq_hz, 4)} – ${fmt(b.high * b.freq_hz, 4)} Hz` : "none", fmt(b.width, 4)] })), "num");
+      b.width > 0 ? `${fmt(b.low * b.freq_hz, 4)} – ${fmt(b.high * b.freq_hz, 4)} Hz` +
+        (b.at_limit ? " (the search range's end: the band goes on)" : "") : "none",
+      (b.at_limit ? "≥ " : "") + fmt(b.width, 4)] })), "num");
   if (r.taps) {
     const t = r.taps;
-    $("d-taps-method").textContent = `${t.n_taps} taps at ${fmt(t.sample_rate)} Hz: ${t.method}; sum ${fmt(t.sum, 6)}` +
+    $("d-taps-method").textContent = `${t.n_taps} tap${t.n_taps === 1 ? "" : "s"} at ${fmt(t.sample_rate)} Hz: ${t.method}; sum ${fmt(t.sum, 6)}` +
       (t.residual_vibration.length ? "; residual at the mode(s) " + t.residual_vibration.map(pct).join(", ") : "") +
       (t.iir ? "; plus an IIR section (in the export)" : "");
     $("d-taps").innerHTML = table(["sample", "time [s]", "weight"],
