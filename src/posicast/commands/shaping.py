@@ -20,28 +20,40 @@ __all__ = ["run"]
 def run(args: argparse.Namespace) -> int:
     """Run ``kinds``, ``design`` or ``sensitivity`` (``args.command``)."""
     if args.command == "kinds":
-        if args.json:
-            print(json.dumps([{"kind": name, "summary": spec.summary, "params": dict(spec.params)}
-                              for name, spec in registry.KINDS.items()], indent=2, default=str))
-            return 0
-        for name, spec in registry.KINDS.items():
-            params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
-            print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
-        return 0
+        return _kinds(args)
     if args.command == "sensitivity":  # the tolerance and the output before any design work
         v.real_in_range(args.tol, "--tol", 0.0, 1.0, lo_open=True, hi_open=True)
         if args.out is None and not args.json:
             raise ValueError("--out is required (the figure), unless --json")
     mode = mode_of(args)
     if args.command == "design":
-        kind = args.kind.lower()
-        S = registry.design(kind, mode, **shaper_params(args, kind))
-        if args.json:
-            print(json.dumps(S.to_dict(), indent=2))
-        else:
-            _print_shaper(S)
+        return _design(args, mode)
+    return _sensitivity(args, mode)
+
+
+def _kinds(args: argparse.Namespace) -> int:
+    if args.json:
+        print(json.dumps([{"kind": name, "summary": spec.summary, "params": dict(spec.params)}
+                          for name, spec in registry.KINDS.items()], indent=2, default=str))
         return 0
-    # sensitivity: design, analyse, draw; write last
+    for name, spec in registry.KINDS.items():
+        params = ", ".join(f"{k}={v}" for k, v in spec.params.items())
+        print(f"{name:8s} {spec.summary}" + (f"  [{params}]" if params else ""))
+    return 0
+
+
+def _design(args: argparse.Namespace, mode: Mode) -> int:
+    kind = args.kind.lower()
+    S = registry.design(kind, mode, **shaper_params(args, kind))
+    if args.json:
+        print(json.dumps(S.to_dict(), indent=2))
+    else:
+        _print_shaper(S)
+    return 0
+
+
+def _sensitivity(args: argparse.Namespace, mode: Mode) -> int:
+    """Design each kind, analyse, draw; the figure is written last."""
     shapers = [registry.design(k.lower(), mode, **shaper_params(args, k.lower())) for k in args.kinds]
     ref = "unshaped" if any(not math.isfinite(S.duration) for S in shapers) else "end"
     rows = []

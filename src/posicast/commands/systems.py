@@ -80,15 +80,24 @@ def _controller(args: argparse.Namespace) -> TransferFunction | None:
         if given or args.derivative_filter is not None:
             raise ValueError("give the controller as --kp/--ki/--kd or as --controller-num/--controller-den, "
                              "not both")
-        if args.controller_num is None:
-            raise ValueError("--controller-num is required with --controller-den")
-        num = quasi_polynomial(args.controller_num, "--controller-num")
-        den = quasi_polynomial(args.controller_den or "1", "--controller-den")
-        return _transfer(num, den, "--controller-num/--controller-den")
+        return _polynomial_controller(args)
     if not given:
         if args.derivative_filter is not None:
             raise ValueError("--derivative-filter needs --kd")
         return None
+    return _pid_controller(args, gains)
+
+
+def _polynomial_controller(args: argparse.Namespace) -> TransferFunction:
+    if args.controller_num is None:
+        raise ValueError("--controller-num is required with --controller-den")
+    num = quasi_polynomial(args.controller_num, "--controller-num")
+    den = quasi_polynomial(args.controller_den or "1", "--controller-den")
+    return _transfer(num, den, "--controller-num/--controller-den")
+
+
+def _pid_controller(args: argparse.Namespace, gains: dict[str, float | None]) -> TransferFunction:
+    """``kp + ki / s + kd s / (tf s + 1)`` from the gain options."""
     # any finite gain: the spectral tools scale the characteristic, and refuse what floats cannot hold or
     # what would take too long up front, with the range or the estimate (kd = 4.6e16 on the crane: 0.1 s)
     kp, ki, kd = (v.finite_real(gains[g] or 0.0, f"--{g}") for g in ("kp", "ki", "kd"))
