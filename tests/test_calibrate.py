@@ -323,3 +323,16 @@ def test_reprapfirmware_recording_is_read_and_refused_with_a_way(tmp_path) -> No
         posicast.calibrate(path)
     r = posicast.identify(ds.t, None, ds.columns["accel_x"], method="decay")  # the way the message gives
     assert r.modes[0].freq_hz == pytest.approx(f0, rel=1e-3) and r.modes[0].zeta == pytest.approx(z, rel=0.02)
+
+
+def test_config_of_two_axes_is_one_block_per_firmware() -> None:
+    """x and y together: each firmware's header comment once, then every axis's lines (pasted as one block)."""
+    cal = posicast.calibrate([REAL / "bassco_v0_resonances_x_20220703.csv", REAL / "bassco_v0_resonances_y_20220703.csv"],
+                             firmware=["klipper", "marlin"])
+    per_axis = [ln for rec in cal.recommendations for ln in rec.config]
+    assert per_axis.count("# Klipper (printer.cfg, section [input_shaper])") == 2
+    assert cal.config == [ln for i, ln in enumerate(per_axis) if not (ln[:1] in ("#", ";") and ln in per_axis[:i])]
+    assert cal.config.count("# Klipper (printer.cfg, section [input_shaper])") == 1
+    assert cal.config.count("; Marlin FT_MOTION (M493)") == 1
+    assert [ln.split(":")[0] for ln in cal.config[1:7]] == [
+        "shaper_type_x", "shaper_freq_x", "damping_ratio_x", "shaper_type_y", "shaper_freq_y", "damping_ratio_y"]

@@ -139,10 +139,10 @@ class Calibration:
 
     @property
     def config(self) -> list[str]:
-        """Every firmware's lines (and the schedule's)."""
+        """Every firmware's lines (and the schedule's); a firmware's header comment once, not once per axis."""
         out: list[str] = []
         for rec in self.recommendations:
-            out += rec.config
+            out += [ln for ln in rec.config if not (ln[:1] in ("#", ";") and ln in out)]
         if self.schedule is not None:
             out += self.schedule.lines
         return out
