@@ -458,19 +458,29 @@ def _score_types(fw: Firmware, types: dict[str, ShaperType], boxes: list[ModeBox
     return scored, skipped
 
 
+def _pct(fraction: float) -> str:
+    """A fraction in percent for the notes: one decimal from 1 %, two significant digits below (0.023, not 0.0).
+
+    >>> _pct(0.137), _pct(0.00023), _pct(0.0), _pct(0.001)
+    ('13.7', '0.023', '0', '0.1')
+    """
+    p = 100.0 * fraction
+    return "0" if p == 0 else (f"{p:.1f}" if p >= 1 else f"{p:.2g}")
+
+
 def _reasoning(fw: Firmware, best: Candidate, why: str, ref: Candidate | None, vtol: float | None, margin: float,
                dampings: tuple[float, float, float], with_spectra: bool) -> list[str]:
     measure = (f"residual vibration weighted by the measured spectrum, worst over damping {dampings[0]:.3f}-"
                f"{dampings[2]:.3f} (the identified range) and a +-{100 * margin:.0f} % frequency drift"
                if with_spectra else "residual vibration over the modes' 95 % boxes")
-    target = "" if vtol is None else f" (target {100 * vtol:.0f} %)"
-    reasoning = [f"{fw.name}: {why}: {best.label}; worst case {100 * best.vibration:.1f} %{target}, "
+    target = "" if vtol is None else f" (target {_pct(vtol)} %)"
+    reasoning = [f"{fw.name}: {why}: {best.label}; worst case {_pct(best.vibration)} %{target}, "
                  f"smoothing {best.smoothing:.3f} mm, max_accel {best.max_accel:.0f} mm/s^2",
                  f"worst case = {measure}"]
     if ref is not None and ref.firmware_vibration is not None and best.firmware_vibration is not None:
         reasoning.append(f"{fw.name}'s own tool would pick {ref.label} (its remaining vibrations "
-                         f"{100 * ref.firmware_vibration:.1f} %, smoothing {ref.smoothing:.3f} mm, worst case "
-                         f"{100 * ref.vibration:.1f} %); posicast's pick has {100 * best.firmware_vibration:.1f} % "
+                         f"{_pct(ref.firmware_vibration)} %, smoothing {ref.smoothing:.3f} mm, worst case "
+                         f"{_pct(ref.vibration)} %); posicast's pick has {_pct(best.firmware_vibration)} % "
                          "by the same measure")
     return reasoning
 
