@@ -336,3 +336,13 @@ def test_config_of_two_axes_is_one_block_per_firmware() -> None:
     assert cal.config.count("; Marlin FT_MOTION (M493)") == 1
     assert [ln.split(":")[0] for ln in cal.config[1:7]] == [
         "shaper_type_x", "shaper_freq_x", "damping_ratio_x", "shaper_type_y", "shaper_freq_y", "damping_ratio_y"]
+
+
+def test_config_keeps_each_axis_warning() -> None:
+    """A target no setting meets: each axis's warning names its axis and stays, only the header is shared."""
+    cal = posicast.calibrate([REAL / "bassco_v0_resonances_x_20220703.csv", REAL / "bassco_v0_resonances_y_20220703.csv"],
+                             vtol=0.01)
+    warnings = [ln for ln in cal.config if "warning:" in ln]
+    assert [w.split(" keeps")[0] for w in warnings] == ["# warning: no klipper setting for axis x",
+                                                       "# warning: no klipper setting for axis y"]
+    assert cal.config.count("# Klipper (printer.cfg, section [input_shaper])") == 1

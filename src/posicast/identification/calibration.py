@@ -142,7 +142,8 @@ class Calibration:
         """Every firmware's lines (and the schedule's); a firmware's header comment once, not once per axis."""
         out: list[str] = []
         for rec in self.recommendations:
-            out += [ln for ln in rec.config if not (ln[:1] in ("#", ";") and ln in out)]
+            # a repeated header comment is dropped; a warning (it names its axis) never is
+            out += [ln for ln in rec.config if not (ln[:1] in ("#", ";") and "warning:" not in ln and ln in out)]
         if self.schedule is not None:
             out += self.schedule.lines
         return out

@@ -403,7 +403,8 @@ def _config(fw: Firmware, best: Candidate, axis: str | None, vtol: float | None)
     config = fw.config(best.setting, axis or "x")
     if vtol is not None and best.vibration > vtol:
         mark = "#" if isinstance(fw, Klipper) else ";"
-        config = [f"{mark} warning: no {fw.name} setting keeps the worst case within {100 * vtol:g} %; this one "
+        which = f"{fw.name} setting for axis {axis}" if axis else f"{fw.name} setting"
+        config = [f"{mark} warning: no {which} keeps the worst case within {100 * vtol:g} %; this one "
                   f"leaves {100 * best.vibration:.1f} %"] + config
     return config
 
