@@ -8,7 +8,7 @@ posicast module may import it.
 
 Layers (low to high):
 
-0. ``_validate`` (argument checks) and ``_lazy`` (lazy public names): import nothing of posicast.
+0. ``_validate`` (argument checks), ``_lazy`` (lazy public names) and ``_files`` (atomic writes): import nothing of posicast.
 1. ``core`` (exact delay transfer functions) and ``modes`` (the Mode value type).
 2. ``shapers`` and ``spectra``.
 3. ``loops`` and ``cases``: the seeds' plants are loop data (transfer functions and
@@ -44,7 +44,7 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 PKG = SRC / "posicast"
 
 LAYERS: dict[str, float] = {
-    "_validate": 0, "_lazy": 0,
+    "_validate": 0, "_lazy": 0, "_files": 0,
     "core": 1, "modes": 1,
     "shapers": 2, "spectra": 2,
     "loops": 3, "cases": 3,

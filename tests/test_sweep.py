@@ -161,6 +161,14 @@ def test_results_are_labelled_and_written_as_a_table(tmp_path: Path) -> None:
     r.to_csv(tmp_path / "t.csv")
     lines = (tmp_path / "t.csv").read_text().splitlines()
     assert lines[0] == "ratio,zeta,v,kind,ok,status,error" and len(lines) == 5
+    # written like every file posicast writes (posicast._files.atomic_write): the usual mode, not the
+    # temporary file's private 0600, and no temporary left behind
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (tmp_path / "t.csv").stat().st_mode & 0o777 == 0o666 & ~mask
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
+    with pytest.raises(ValueError, match="path: cannot write"):
+        r.to_csv(tmp_path / "no_such_dir" / "t.csv")
     with pytest.raises(KeyError, match="neither a value"):
         r["nope"]
 

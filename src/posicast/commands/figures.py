@@ -6,13 +6,12 @@ that draw pay for it.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, BinaryIO, Callable
 
 from .. import _validate as v
+from .._files import atomic_write
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -48,21 +47,6 @@ def save_atomic(fig: Figure, out: str, option: str = "--plot") -> None:
 
 
 def write_atomic(target: Path, out: str, option: str, write: Callable[[BinaryIO], Any]) -> None:
-    """Call ``write(fh)`` on a temporary file beside ``target`` and rename it onto ``target`` (see
-    :func:`save_atomic`; ``out`` is the user's spelling of the path, for the message)."""
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, target)
-        tmp = None
-    except (OSError, ValueError, RuntimeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc).splitlines()[0]
-        raise ValueError(f"{option}: cannot write {str(out)!r}: {reason}") from None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
+    """Call ``write(fh)`` on a temporary file beside ``target`` and rename it onto ``target``
+    (:func:`posicast._files.atomic_write`; ``out`` is the user's spelling of the path, for the message)."""
+    atomic_write(target, write, name=option, shown=out)

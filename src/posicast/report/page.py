@@ -17,13 +17,13 @@ import io
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass
 from numbers import Integral, Real
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 from .. import _validate as v
+from .._files import atomic_write
 
 __all__ = ["Page", "Heading", "format_column", "format_number", "TINY", "MISSING"]
 
@@ -336,26 +336,6 @@ def output_dir(value: Any, name: str = "out_dir") -> Path:
     if out.exists() and not out.is_dir():
         raise ValueError(f"{name} {text!r} exists and is not a directory")
     return out
-
-
-def atomic_write(path: Path, write: Callable[[Any], Any]) -> None:
-    """Write through ``write(binary file)`` to a temporary file next to ``path``, then rename it onto ``path``;
-    nothing is left behind on error (a ValueError naming ``path``)."""
-    tmp = None
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-        mask = os.umask(0)  # mkstemp makes the file private (0600): give it the usual mode
-        os.umask(mask)
-        os.chmod(tmp, 0o666 & ~mask)
-        os.replace(tmp, path)
-        tmp = None
-    except OSError as exc:
-        raise ValueError(f"cannot write {str(path)!r}: {exc.strerror or exc}") from None
-    finally:
-        if tmp is not None and os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def _close(fig: Any) -> None:

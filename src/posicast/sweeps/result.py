@@ -11,8 +11,8 @@ everything into columns, :meth:`SweepResult.to_csv` writes them.
 from __future__ import annotations
 
 import csv
+import io
 import os
-import tempfile
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Mapping, NamedTuple
 import numpy as np
 
 from .. import _validate as v
+from .._files import atomic_write
 from .plots import value_map
 from .space import Space
 
@@ -174,19 +175,18 @@ class SweepResult:
         """Write :meth:`table` as CSV at exactly ``path``, atomically (a temporary file renamed): a header
         row, one row per point, floats with ``repr`` precision."""
         cols = self.table()
-        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(os.fspath(path))}.", suffix=".part",
-                                   dir=os.path.dirname(os.path.abspath(path)))
-        try:
-            with os.fdopen(fd, "w", newline="", encoding="utf-8") as fh:
-                w = csv.writer(fh)
-                w.writerow(list(cols))
-                for row in zip(*cols.values()):
-                    w.writerow([repr(float(x)) if isinstance(x, np.floating) else
-                                str(bool(x)) if isinstance(x, np.bool_) else str(x) for x in row])
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+
+        def write(fh: Any) -> None:
+            text = io.TextIOWrapper(fh, encoding="utf-8", newline="")
+            w = csv.writer(text)
+            w.writerow(list(cols))
+            for row in zip(*cols.values()):
+                w.writerow([repr(float(x)) if isinstance(x, np.floating) else
+                            str(bool(x)) if isinstance(x, np.bool_) else str(x) for x in row])
+            text.flush()
+            text.detach()  # the temporary file is closed by atomic_write
+
+        atomic_write(path, write, name="path")
 
     def summary(self) -> str:
         """One paragraph: points, statuses, values, the first failures and the cost."""
