@@ -3,8 +3,7 @@
 Text syntax of ``--num``, ``--den``, ``--controller-num``, ``--controller-den``: a
 polynomial in descending powers (``"1 0.2 4"`` is ``s^2 + 0.2 s + 4``), or a
 quasi-polynomial as terms joined by ``;``, each term a polynomial with its delay after
-``@``: ``"1 0.2 4; 2 @0.5"`` is ``s^2 + 0.2 s + 4 + 2 e^{-0.5 s}`` (the syntax of
-``posicast tune --num/--den`` plus the delays).  ``--delay`` multiplies the plant by
+``@``: ``"1 0.2 4; 2 @0.5"`` is ``s^2 + 0.2 s + 4 + 2 e^{-0.5 s}`` (``posicast tune --num/--den`` reads the same).  ``--delay`` multiplies the plant by
 ``e^{-s delay}``.  A controller (``--kp/--ki/--kd [--derivative-filter]`` or
 ``--controller-num/--controller-den``) makes a loop of ``--architecture``; without one
 the plant (times the shaper, if one is given) is the system.
@@ -26,7 +25,7 @@ from ..modes import Mode
 from ..shapers import registry
 from ..shapers.base import Shaper
 
-__all__ = ["System", "quasi_polynomial", "system_of"]
+__all__ = ["Plant", "System", "plant_of", "quasi_polynomial", "system_of"]
 
 
 class System(NamedTuple):
@@ -117,8 +116,19 @@ def _pid_controller(args: argparse.Namespace, gains: dict[str, float | None]) ->
     return TransferFunction.from_poly(np.trim_zeros(num, "f") if np.any(num) else [0.0], den)
 
 
-def system_of(args: argparse.Namespace) -> System:
-    """The loop (or plant) the options describe; every option is checked before any design work."""
+class Plant(NamedTuple):
+    """The plant the options describe: ``G`` (with ``--delay``), the load ``F`` and the mode (a case's, or
+    ``--omega/--zeta``), and a description."""
+
+    G: TransferFunction
+    F: TransferFunction | None
+    mode: Mode | None
+    description: str
+
+
+def plant_of(args: argparse.Namespace) -> Plant:
+    """``--case`` or ``--num/--den`` with ``--delay``; ``--omega/--zeta`` override the case's mode (``tune``,
+    ``stability`` and ``simulate`` read their plant here)."""
     v.nonnegative(args.delay, "--delay", " [s]")
     if (args.omega is None) != (args.zeta is None):
         raise ValueError("--omega and --zeta go together")
@@ -139,9 +149,15 @@ def system_of(args: argparse.Namespace) -> System:
     if args.delay:
         G = G * delay(args.delay)
         what += f" e^(-{args.delay:g} s)"
-    C = _controller(args)
     if args.omega is not None:
         mode = Mode(args.omega, args.zeta)
+    return Plant(G, F, mode, what)
+
+
+def system_of(args: argparse.Namespace) -> System:
+    """The loop (or plant) the options describe; every option is checked before any design work."""
+    G, F, mode, what = plant_of(args)
+    C = _controller(args)
     S = None
     if args.shaper is not None:
         if mode is None:

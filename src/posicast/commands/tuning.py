@@ -9,15 +9,13 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from .. import _validate as v
-from ..cases import ALL as CASES
-from ..core.transfer import TransferFunction, as_transfer, delay
-from ..modes import Mode
 from ..shapers import registry  # registry.design at call time: the suite patches it to test status 70
 from ..tune import TuningResult, tune_pd, tune_pi
 from ..tune.constraints import sensitivity_constraint
 from ..tune.family import pd_family
 from .figures import pyplot, save_atomic
 from .progress import working
+from .systems import plant_of
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -27,7 +25,7 @@ __all__ = ["run"]
 
 def run(args: argparse.Namespace) -> int:
     _check_tune_options(args)  # every option first, before any design work
-    G, F, mode = _tune_plant(args)
+    G, F, mode, _ = plant_of(args)
     S = None
     if args.shaper is not None:
         if mode is None:
@@ -52,16 +50,6 @@ def run(args: argparse.Namespace) -> int:
     return 0 if r.gains is not None else 1  # 1: ran, but no controller (empty or unbounded region)
 
 
-def _coeffs(text: str, name: str) -> list[float]:
-    try:
-        vals = [float(v) for v in text.replace(",", " ").split()]
-    except ValueError:
-        raise ValueError(f"{name} must be numbers separated by spaces, got {text!r}") from None
-    if not vals:
-        raise ValueError(f"{name} must not be empty")
-    return vals
-
-
 def _check_tune_options(args: argparse.Namespace) -> None:
     """Every ``tune`` option that needs no design work, before any design work."""
     sensitivity_constraint(args.ms)  # ms range (ValueError naming ms)
@@ -80,30 +68,6 @@ def _check_tune_options(args: argparse.Namespace) -> None:
         raise ValueError("--ki-range does not apply to a pd controller")
     if args.controller == "pi" and (args.kd_range is not None or args.derivative_filter is not None):
         raise ValueError("--kd-range and --derivative-filter do not apply to a pi controller")
-    v.nonnegative(args.delay, "--delay", " [s]")
-    if (args.omega is None) != (args.zeta is None):
-        raise ValueError("--omega and --zeta go together")
-
-
-def _tune_plant(args: argparse.Namespace) -> tuple[TransferFunction, TransferFunction | None, Mode | None]:
-    """``(G, F, mode)`` from ``--case`` or ``--num/--den`` (with ``--delay``); ``--omega/--zeta`` override the mode."""
-    F = None
-    mode = None
-    if args.case is not None:
-        v.choice(args.case, "--case", CASES)
-        if args.den is not None:
-            raise ValueError("--den goes with --num, not with --case")
-        case = CASES[args.case]
-        G, F, mode = case.G, case.F, case.mode
-    else:
-        if args.den is None:
-            raise ValueError("--den is required with --num")
-        G = as_transfer((_coeffs(args.num, "--num"), _coeffs(args.den, "--den")), "the plant --num/--den")
-    if args.delay != 0.0:
-        G = G * delay(args.delay)
-    if args.omega is not None:
-        mode = Mode(args.omega, args.zeta)
-    return G, F, mode
 
 
 def _tune_figures(args: argparse.Namespace, r: TuningResult) -> list[tuple[Figure, str, str]]:
