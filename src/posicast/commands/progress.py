@@ -60,49 +60,38 @@ def working(what: str, quiet: bool = False, delay: float | None = None) -> Itera
     if quiet:
         yield
         return
-    if _on_terminal():
-        began = time.monotonic()
-        done = threading.Event()
-        bar: list[Any] = []  # made by the thread once ``wait`` has passed (tqdm's own delay would end
-        #                      a line it only refreshed without its newline)
-
-        def redraw() -> None:
-            if done.wait(wait):
-                return
-            bar.append(_status_line(what))
-            bar[0].start_t -= time.monotonic() - began  # elapsed from the start of the work
-            bar[0].refresh()
-            while not done.wait(0.5):
-                bar[0].refresh()
-
-        thread = threading.Thread(target=redraw, name="posicast-progress", daemon=True)
-        thread.start()
-        try:
-            yield
-        finally:
-            done.set()
-            thread.join()
-            if bar:
-                bar[0].close()
-        return
     start = time.monotonic()
     done = threading.Event()
+    bar: list[Any] = []  # the terminal's status line, made by the thread once ``wait`` has passed (tqdm's
+    #                      own delay would end a line it only refreshed without its newline)
     said = threading.Event()
 
-    def tick() -> None:
+    def on_terminal() -> None:
+        if done.wait(wait):
+            return
+        bar.append(_status_line(what))
+        bar[0].start_t -= time.monotonic() - start  # elapsed from the start of the work
+        bar[0].refresh()
+        while not done.wait(0.5):
+            bar[0].refresh()
+
+    def in_a_log() -> None:
         gap = wait
         while not done.wait(max(0.0, start + gap - time.monotonic())):
             _line(start, f"{what} ...")
             said.set()
             gap = 2.0 * max(gap, 0.5)
 
-    thread = threading.Thread(target=tick, name="posicast-progress", daemon=True)
+    thread = threading.Thread(target=on_terminal if _on_terminal() else in_a_log, name="posicast-progress",
+                              daemon=True)
     thread.start()
     try:
         yield
     finally:
         done.set()
         thread.join()
+        if bar:
+            bar[0].close()
         if said.is_set():
             _line(start, f"{what}: done")
 
