@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..loops import spectrum_plot
+from ..loops.plots import complex_plane
 from ..spectra import rightmost, spectral_abscissa, stability
 from ..spectra.systems import characteristic_of
 from .figures import pyplot, save_atomic
@@ -104,12 +105,6 @@ def _figure(system: System, rm: np.ndarray, sa: float) -> Figure:
         fig, ax = plt.subplots(figsize=(7, 6))
         p = system.target.poles(region).roots
         ax.plot(p.real, p.imag, "s", mfc="none", color="tab:blue", label="poles")
-        ax.axvline(0.0, color="k", lw=0.6)
-        ax.set_xlim(region[0], region[1])
-        ax.set_ylim(region[2], region[3])
-        ax.set_xlabel("Re s")
-        ax.set_ylabel("Im s")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8)
+        complex_plane(ax, region)
     ax.set_title(f"{system.description}; spectral abscissa {float(sa):.4g}", fontsize=9)
     return fig

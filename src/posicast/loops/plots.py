@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["bode_plot", "nyquist_plot", "spectrum_plot", "unwrapped_phase"]
+__all__ = ["bode_plot", "complex_plane", "nyquist_plot", "spectrum_plot", "unwrapped_phase"]
 
 _COLORS = ("tab:blue", "tab:red", "tab:green", "tab:orange", "tab:purple", "tab:brown")
 
@@ -346,6 +346,13 @@ def spectrum_plot(
         pol = lp.poles(region).roots
         ax.plot(pol.real, pol.imag, markers[i % len(markers)], color=col, mfc="none", ms=7,
                 label=f"closed-loop poles ({lab})")
+    complex_plane(ax, region)
+    return fig, ax
+
+
+def complex_plane(ax: Axes, region: Sequence[float]) -> None:
+    """The s-plane frame of :func:`spectrum_plot`: the imaginary axis, the ``region``
+    ``(re_min, re_max, im_min, im_max)`` as limits, axis labels, grid and legend."""
     ax.axvline(0.0, color="k", lw=0.6)
     ax.set_xlim(region[0], region[1])
     ax.set_ylim(region[2], region[3])
@@ -353,4 +360,3 @@ def spectrum_plot(
     ax.set_ylabel("Im s")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    return fig, ax
