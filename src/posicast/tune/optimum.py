@@ -141,13 +141,12 @@ def optimum(tuner: _Tuner, problem: Problem, region: Region, yr: tuple[float, fl
             window = f"{y_cap:.4g}, the top of the searched window (10^{SWEEP_DECADES} x the loop's ultimate-gain scale)"
         return _unbounded(tuner, region, i, window)
     last = None
-    for x, y, e, b in _candidates(problem, region, i):
-        note = ""
+    for x, y, e, b, note in _candidates(problem, region, i):
         if e is None and y < yr[1]:
             # the supremum lies on a stability boundary: not attained, step into the open set
             depth = (y - b) if math.isfinite(b) else max(abs(y), 1.0)
             y = y - 1e-3 * depth
-            note = "; the boundary there is a stability boundary (not attained): the point is 0.1 % inside"
+            note += "; the boundary there is a stability boundary (not attained): the point is 0.1 % inside"
         reason = _reason_for(tuner.family, e, problem, y, yr, unbounded_x) + note
         result = finish(tuner, problem, region, x, y, reason, unbounded_x, e)
         if result.stable and _meets(result, tuner):
@@ -170,15 +169,19 @@ def _failure_reason(tuner: _Tuner, last: TuningResult | None) -> str:
     return why
 
 
-def _candidates(problem: Problem, region: Region, i: int) -> Iterator[tuple[float, float, IntervalEnd, float]]:
-    """The design point ``(kx, ky, end, bottom)``: first the exact optimum near line ``i``, then (only if
-    it fails its verification) the next best lines' exact tops."""
+def _candidates(problem: Problem, region: Region, i: int) -> Iterator[tuple[float, float, IntervalEnd, float, str]]:
+    """The design point ``(kx, ky, end, bottom, note)``: first the exact optimum near line ``i``, then (only
+    if it fails its verification) the next best lines' exact tops, with a note saying so."""
     x_best = float(region.x[i])
     y_best, end, bottom = _probe_top(problem, region, i, x_best)
     if end is not None and not isinstance(end, Cut):
         x_best, y_best, end = exact_optimum(problem, region, i, x_best, y_best, bottom, end)
+    later = f"; the best line (at {region.x[i]:.4g}) did not verify: this is the best of the next lines' tops"
     if math.isfinite(y_best):  # -inf: the fresh line found no stable admissible piece there
-        yield x_best, y_best, end, bottom
+        yield x_best, y_best, end, bottom, ""
+    else:
+        later = (f"; a fresh scan at the best line ({region.x[i]:.4g}) found no stable admissible piece: this is "
+                 "the best of the next lines' tops, not the exact optimum")
     tops = np.array([region.top(k) for k in range(region.x.size)])
     for k in [int(k) for k in np.argsort(-tops) if np.isfinite(tops[k]) and int(k) != i][:8]:
         x = float(region.x[k])
@@ -190,7 +193,7 @@ def _candidates(problem: Problem, region: Region, i: int) -> Iterator[tuple[floa
             y_x, _, e_x = exact_top(problem.columns, x, y_p, b)
             if math.isfinite(y_x) and y_x > b:
                 y, e = y_x, (e_x if e_x is not None else e_p)
-        yield x, y, e, b
+        yield x, y, e, b, later
 
 
 def _reason_for(fam: ControllerFamily, end: IntervalEnd, problem: Problem, y: float, yr: tuple[float, float],
