@@ -298,3 +298,36 @@ def test_plant_with_a_delay_keeps_its_verdicts(tmp_path) -> None:
     notes = [r[-1] for t in page.tables if t[0][-1:] == ["note"] for r in t[1:]]
     assert len(notes) == 4 and all(n.startswith("not simulated: ") for n in notes)
     assert s.details["tuned"]["gains"]["kd"] > 0 and s.details["tuned"]["stable"]
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return int.from_bytes(data[16:20], "big"), int.from_bytes(data[20:24], "big")
+
+
+def test_figure_laid_out_is_saved_whole_and_loose_text_is_kept() -> None:
+    """A tight_layout figure is saved at its canvas size in one pass (issue #15: the tight bbox cost a
+    third pass over every artist); a figure-level text placed outside the canvas still forces the tight
+    bbox, so it is not clipped; a figure without a layout engine is cropped as before."""
+    import matplotlib.pyplot as plt
+
+    page = Page("t")
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.plot([0, 1], [0, 1])
+    ax.set_title("title")
+    fig.tight_layout()
+    page.figure(fig, "laid_out")
+    assert _png_size(page._figures[-1][1]) == (400, 300)  # dpi 100, the canvas as laid out
+
+    fig, ax = plt.subplots(figsize=(4, 3))
+    ax.plot([0, 1], [0, 1])
+    fig.tight_layout()
+    fig.text(1.2, 0.5, "far to the right")  # outside the canvas: the tight bbox must grow to hold it
+    page.figure(fig, "loose_text")
+    assert _png_size(page._figures[-1][1])[0] > 400
+
+    fig, ax = plt.subplots(figsize=(4, 3))  # no layout engine: cropped to its content
+    ax.plot([0, 1], [0, 1])
+    page.figure(fig, "plain")
+    w, h = _png_size(page._figures[-1][1])
+    assert w < 400 and h < 300
