@@ -165,7 +165,6 @@ class Heading:
     id: str
 
 
-
 def _bbox(fig: Any) -> str | None:
     """``savefig``'s ``bbox_inches`` for ``fig``: None when a layout engine already placed everything.
 
@@ -178,6 +177,7 @@ def _bbox(fig: Any) -> str | None:
     if engine is not None and not fig.legends and not fig.texts:
         return None
     return "tight"
+
 
 class Page:
     """An HTML page built in memory: parts, sections, paragraphs, tables, code, figures.
