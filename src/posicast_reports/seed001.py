@@ -114,12 +114,20 @@ class Table1Row:
 
 def paper_point_ms(structure: str, kind: str | None, kp: float, kd: float, delay: float = 0.0,
                    omega: np.ndarray | None = None) -> float:
-    """Peak sensitivity of the loop with the paper's gains, on eq. 10 as printed (plus ``delay``)."""
+    """Peak sensitivity of the loop with the paper's gains, on eq. 10 as printed (plus ``delay``).
+
+    The peak on ``omega`` (default 0.01-300 rad/s, 15001 points) refined between its grid
+    neighbours (a 150001-point grid reads up to 7e-8 lower).
+    """
     case = _case()
     G = case.G if delay == 0 else case.G * pure_delay(delay)
-    L = Loop(structure, G=G, C=([kd, kp], [1.0]), F=case.F, S=crane_shaper(kind))
-    w = np.linspace(0.01, 300.0, 150001) if omega is None else omega
-    return float(np.max(np.abs(L.sensitivity.freqresp(w))))
+    sens = Loop(structure, G=G, C=([kd, kp], [1.0]), F=case.F, S=crane_shaper(kind)).sensitivity
+    w = np.linspace(0.01, 300.0, 15001) if omega is None else np.asarray(omega, dtype=float)
+    mag = np.abs(sens.freqresp(w))
+    i = int(np.argmax(mag))
+    lo, hi = w[max(i - 1, 0)], w[min(i + 1, w.size - 1)]
+    res = minimize_scalar(lambda x: -abs(sens(1j * x)), bounds=(lo, hi), method="bounded", options={"xatol": 1e-9})
+    return float(max(mag[i], -res.fun))
 
 
 def table1(delay: float = 0.0, shapers: Sequence[str | None] = SHAPERS, n_lines: int = 161,
