@@ -4,7 +4,7 @@ The model is ``y = sum_k (b0_k + b1_k s) / (s^2 + 2 zeta_k omega_k s + omega_k^2
 plus each mode's free response (unknown initial state), sampled exactly under a
 zero-order hold.  The numerators, the feed-through ``d`` (an accelerometer's ``s^2``
 term) and the offset ``c`` enter linearly and are projected out; only
-``(ln omega_k, zeta_k)`` are searched (scipy.optimize.least_squares), from the peaks
+``(ln omega_k, zeta_k)`` are searched (trust-region reflective, :mod:`.trust_region`), from the peaks
 of the empirical transfer function.  Output noise does not bias it (the criterion
 is the simulated, not the predicted, output).  Intervals: :mod:`.fit_statistics`.
 Modes the data do not demand are dropped (:mod:`.significance`).
@@ -17,12 +17,14 @@ from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from scipy import optimize, signal, special
+from scipy import signal, special
+from scipy.linalg import lapack
 
 from .. import _validate as v
 from ..modes import Mode
 from .fit_statistics import fit_percent, half_power_span, pole_intervals, whiteness
 from .results import Identification, PeakGuess
+from .trust_region import TRFResult, trust_region_reflective
 from .significance import ModeTest, NoModeFound, describe_failure, search_cells, wald_test
 
 __all__ = ["ZETA_MIN", "ZETA_MAX", "OEModel", "OESettings", "OEFit", "fit_oe", "significant_oe"]
@@ -33,6 +35,8 @@ _LONG_RECORD = 1 << 16
 _HEAD = 1 << 15
 #: How many start candidates ranked on the start of a long record are ranked again on all of it.
 _SHORTLIST = 4
+#: Elements of the stacked regression columns per batch when the start's candidates are ranked (16 MB).
+_BATCH = 1 << 21
 #: The damping ratios the time-domain fits search (also the clip of the frequency-domain and decay starts).
 ZETA_MIN, ZETA_MAX = 1e-5, 0.95
 
@@ -73,7 +77,7 @@ class OEModel:
         self.k = np.arange(y.size, dtype=float)
         self.n_lin_last = 0
         self._free: dict[int, list[int]] = {}
-        self._last: tuple[np.ndarray, _Projection] | None = None
+        self._last: tuple[bytes, _Projection] | None = None
 
     def basis(self, theta: np.ndarray) -> np.ndarray:
         return self.columns(theta)[0]
@@ -165,23 +169,46 @@ class OEModel:
         return fit.residual, fit.coef @ fit.rows, fit.rank
 
     def _fit(self, theta: np.ndarray) -> _Projection:
-        """The projection at ``theta`` (the last one is kept: scipy asks for the residual, then the Jacobian)."""
-        if self._last is not None and np.array_equal(self._last[0], theta):
+        """The projection at ``theta`` (the last one is kept: the search asks for the residual, then the Jacobian)."""
+        key = theta.tobytes()
+        if self._last is not None and self._last[0] == key:
             return self._last[1]
         rows, _, parts = self._rows(theta)
         Rw, yw = (rows, self.y) if self.w is None else (rows * self.w, self.y * self.w)
         gram = Rw @ Rw.T
-        nrm = np.sqrt(np.diag(gram)).copy()
+        nrm = np.sqrt(np.diag(gram))
         nrm[nrm == 0] = 1.0
-        # projection through the (small) Gram matrix of the unit-norm columns, eigen-truncated for rank
-        # deficiency (a step at k = 0 makes the forced response a combination of offset and free response)
-        lam, V = np.linalg.eigh(gram / np.outer(nrm, nrm))
-        keep = lam > lam[-1] * 1e-13
-        pinv = (V[:, keep] / lam[keep]) @ V[:, keep].T
+        pinv, rank = _gram_pinv(gram / nrm[:, None] / nrm)
         coef = (pinv @ ((Rw @ yw) / nrm)) / nrm  # of the raw columns
-        fit = _Projection(rows, Rw, nrm, pinv, coef, yw - coef @ Rw, int(keep.sum()), parts)
-        self._last = (np.array(theta, dtype=float), fit)
+        fit = _Projection(rows, Rw, nrm, pinv, coef, yw - coef @ Rw, rank, parts)
+        self._last = (key, fit)
         return fit
+
+    def costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
+        """The residual sum of squares at each of ``thetas`` (as :meth:`residual`, batched: the start's ranking)."""
+        out = np.empty(len(thetas))
+        N = self.y.size
+        yw = self.y if self.w is None else self.y * self.w
+        for lo in range(0, len(thetas), max(1, _BATCH // (N * (self._width() + 1)))):
+            chunk = thetas[lo: lo + max(1, _BATCH // (N * (self._width() + 1)))]
+            X = np.stack([self._rows(th)[0] for th in chunk])  # (C, k, N)
+            if self.w is not None:
+                X *= self.w
+            gram = X @ X.transpose(0, 2, 1)
+            nrm = np.sqrt(np.diagonal(gram, axis1=1, axis2=2))
+            nrm = np.where(nrm == 0, 1.0, nrm)
+            lam, V = np.linalg.eigh(gram / nrm[:, :, None] / nrm[:, None, :])
+            inv = np.where(lam > lam[:, -1:] * 1e-13, 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
+            pinv = (V * inv[:, None, :]) @ V.transpose(0, 2, 1)
+            coef = (pinv @ ((X @ yw) / nrm)[:, :, None])[:, :, 0] / nrm
+            r = yw - (coef[:, None, :] @ X)[:, 0, :]
+            out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
+        return out
+
+    def _width(self) -> int:
+        """The number of regression columns."""
+        per_mode = (2 if self.u is not None else 0) + (2 if self.initial_state else 0)
+        return self.n * per_mode + int(self.feedthrough) + int(self.offset)
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
         return self._fit(theta).residual
@@ -258,29 +285,40 @@ class _Projection(NamedTuple):
     parts: list
 
 
+def _gram_pinv(gram: np.ndarray) -> tuple[np.ndarray, int]:
+    """Pseudo-inverse and rank of the unit-norm columns' Gram matrix, eigen-truncated at 1e-13 of its largest
+    eigenvalue (a step at k = 0 makes the forced response a combination of offset and free response)."""
+    lam, V, info = lapack.dsyevd(gram)  # numpy's eigh, without its per-call checks (issue #15)
+    if info != 0:
+        lam, V = np.linalg.eigh(gram)
+    keep = lam > lam[-1] * 1e-13
+    return (V[:, keep] / lam[keep]) @ V[:, keep].T, int(keep.sum())
+
+
 def _bounds(n: int, h: float, w_min: float) -> tuple[np.ndarray, np.ndarray]:
     lo = np.tile([math.log(w_min), ZETA_MIN], n)
     hi = np.tile([math.log(0.98 * math.pi / h), ZETA_MAX], n)
     return lo, hi
 
 
-def _least_squares(model: OEModel, theta0: np.ndarray, w_min: float) -> tuple[np.ndarray, optimize.OptimizeResult]:
-    """scipy's trust-region reflective least squares on the projected residual, within :func:`_bounds`.
+def _least_squares(model: OEModel, theta0: np.ndarray, w_min: float) -> tuple[np.ndarray, TRFResult]:
+    """Trust-region reflective least squares on the projected residual, within :func:`_bounds`
+    (:mod:`.trust_region`: scipy's method without its per-call bookkeeping; issue #15).
 
     On a long record the search is first run on its first ``_HEAD`` samples; the fit on the whole
     record then starts from there if that lowers its cost (a few steps instead of about ten; issue #15).
     """
     lo, hi = _bounds(model.n, model.h, w_min)
     x0 = np.clip(theta0, lo + 1e-9, hi - 1e-9)
-    opts = {"bounds": (lo, hi), "method": "trf", "x_scale": "jac", "xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12,
-            "max_nfev": 200 * len(x0)}
+    opts = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12, "max_nfev": 200 * len(x0)}
     if model.y.size > _LONG_RECORD:
         short = model.head(_HEAD)
-        x1 = np.clip(optimize.least_squares(short.residual, x0, jac=short.jacobian, **opts).x, lo + 1e-9, hi - 1e-9)
+        x1 = np.clip(trust_region_reflective(short.residual, short.jacobian, x0, lo, hi, **opts).x,
+                     lo + 1e-9, hi - 1e-9)
         r0, r1 = model.residual(x0), model.residual(x1)
         if float(r1 @ r1) < float(r0 @ r0):
             x0 = x1
-    res = optimize.least_squares(model.residual, x0, jac=model.jacobian, **opts)
+    res = trust_region_reflective(model.residual, model.jacobian, x0, lo, hi, **opts)
     return res.x, res
 
 
@@ -345,24 +383,22 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
     for j in range(n_modes):
         todo = [(fp, zp) for fp, zp in cands if not any(abs(fp - c[0]) < 0.02 * fp for c in chosen)]
         if short is not None:
-            todo = [c for _, c in sorted(((_cost(short, chosen, c, j), i), c) for i, c in enumerate(todo))]
-            todo = todo[:_SHORTLIST]
+            ranked = _costs(short, chosen, todo, j)
+            todo = [todo[i] for i in sorted(range(len(todo)), key=lambda i: (ranked[i], i))][:_SHORTLIST]
         if not todo:
             raise ValueError(
                 f"n_modes={full_n}: the spectrum has fewer distinct peaks than modes to fit; ask for fewer modes"
             )
-        costs = [_cost(model, chosen, c, j) for c in todo]
+        costs = _costs(model, chosen, todo, j)
         chosen.append(todo[int(np.argmin(costs))])  # the first of equal costs, as a strict < scan
     model.n = full_n
     return np.array([[math.log(2 * math.pi * a), b] for a, b in chosen]).ravel()
 
 
-def _cost(model: OEModel, chosen: list[tuple[float, float]], cand: tuple[float, float], j: int) -> float:
-    """The projected cost of the modes ``chosen`` plus ``cand`` (``j + 1`` modes)."""
+def _costs(model: OEModel, chosen: list[tuple[float, float]], cands: list[tuple[float, float]], j: int) -> np.ndarray:
+    """The projected cost of the modes ``chosen`` plus each of ``cands`` (``j + 1`` modes)."""
     model.n = j + 1
-    th = np.array([[math.log(2 * math.pi * a), b] for a, b in chosen + [cand]]).ravel()
-    r = model.residual(th)
-    return float(r @ r)
+    return model.costs([np.array([[math.log(2 * math.pi * a), b] for a, b in chosen + [c]]).ravel() for c in cands])
 
 
 # ----------------------------------------------------------------------------- the fit
@@ -480,7 +516,7 @@ def significant_oe(u: np.ndarray | None, y: np.ndarray, sample_rate: float, n_mo
         n_modes -= 1
 
 
-def _white(res: optimize.OptimizeResult) -> bool:
+def _white(res: TRFResult) -> bool:
     """Accept the first start when its residual looks white (nothing left to explain)."""
     p = whiteness(res.fun)
     return bool(math.isfinite(p) and p > 1e-3)
