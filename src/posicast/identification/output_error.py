@@ -38,6 +38,9 @@ _HEAD = 1 << 15
 _SHORTLIST = 4
 #: Elements of the stacked regression columns per batch when the start's candidates are ranked (16 MB).
 _BATCH = 1 << 21
+#: The numerator z^-1 of the forced response, as an array: lfilter converts a list through its
+#: array-API layer, which tripled its cost on short records (issue #15).
+_DELAY = np.array([0.0, 1.0])
 #: The damping ratios the time-domain fits search (also the clip of the frequency-domain and decay starts).
 ZETA_MIN, ZETA_MAX = 1e-5, 0.95
 
@@ -125,7 +128,7 @@ class OEModel:
         x1 = powers = None
         j = 0
         if self.u is not None:
-            x1 = signal.lfilter([0.0, 1.0], [1.0, -2.0 * lam.real, abs(lam) ** 2], self.u)
+            x1 = signal.lfilter(_DELAY, np.array([1.0, -2.0 * lam.real, abs(lam) ** 2]), self.u)
             out[0] = x1
             out[1, 0] = 0.0
             out[1, 1:] = x1[:-1]
@@ -253,7 +256,7 @@ class OEModel:
             if x1 is not None:
                 # columns x1 and x2 = z^-1 x1 with d x1 = -(da1 z^-1 + da2 z^-2) / A(z) x1 = -(da1 s1 + da2 z^-1 s1):
                 # one filter for both parameters, and dPhi c, dPhi^T r from shifts of s1
-                s1 = signal.lfilter([0.0, 1.0], [1.0, -2.0 * lam.real, abs(lam) ** 2], x1)
+                s1 = signal.lfilter(_DELAY, np.array([1.0, -2.0 * lam.real, abs(lam) ** 2]), x1)
                 rw = r if self.w is None else r * self.w
                 c0, c1 = fit.coef[col], fit.coef[col + 1]
                 q = c0 * s1

@@ -8,7 +8,9 @@ x_scale="jac", tr_solver="exact")`` (Branch, Coleman and Li 1999; scipy's ``_lsq
 * the SVD of the augmented Jacobian ``[J D; diag(C)^1/2]`` ((m + n) x n, every inner iteration) is
   taken of the n x n triangle of one QR of ``[J, f]`` per Jacobian stacked on ``diag(C)^1/2``
   (2n x n): the same singular values, right vectors and ``U^T f``;
-* the quadratic models use ``J^T J`` (n x n) instead of products with ``J`` (m x n).
+* the quadratic models use ``J^T J`` (n x n) instead of products with ``J`` (m x n);
+* the n-vectors are Python floats (lists): numpy's call overhead on 2-element arrays was most of
+  the search's own cost.
 
 Why: on the records of 20-2000 samples the demo's identification fits (issue #15), scipy's
 bookkeeping around the call (argument checks, the function wrappers, an (m + n) x n SVD per inner
@@ -18,7 +20,7 @@ iteration) cost about 2.5 ms per fit, more than the model itself.
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import Callable, List, NamedTuple
 
 import numpy as np
 from scipy.linalg import lapack
@@ -37,54 +39,60 @@ class TRFResult(NamedTuple):
     nfev: int
 
 
+Vec = List[float]
+
+
 def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callable[[np.ndarray], np.ndarray],
                             x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, *, ftol: float, xtol: float,
                             gtol: float, max_nfev: int) -> TRFResult:
     """Minimise ``0.5 |fun(x)|^2`` over ``lb <= x <= ub`` (scipy's ``trf_bounds``; ``x0`` is moved strictly
     inside first, as scipy does).  Everything after one QR per Jacobian is n x n."""
-    x = _strictly_feasible(np.array(x0, dtype=float), lb, ub, rstep=1e-10)
-    f = fun(x)
+    n = int(np.size(x0))
+    lo, hi = [float(a) for a in lb], [float(a) for a in ub]
+    x = _strictly_feasible([float(a) for a in x0], lo, hi, rstep=1e-10)
+    f = fun(np.array(x))
+    m = f.size
     nfev = 1
     cost = 0.5 * float(f @ f)
-    R, qf = _triangle(jac(x), f)
-    g, G = R.T @ qf, R.T @ R  # J^T f and J^T J
-    scale_inv = np.sqrt(np.diag(G))  # x_scale="jac": the column norms of J
-    scale_inv = np.where(scale_inv == 0, 1.0, scale_inv)
-    v, dv = _cl_scaling(x, g, lb, ub)
-    Delta = _norm(x * scale_inv / np.sqrt(np.where(dv != 0, v * scale_inv, v))) or 1.0
+    R, qf = _triangle(jac(np.array(x)), f)
+    g, G = _normal(R, qf)
+    scale_inv = [math.sqrt(G[i][i]) or 1.0 for i in range(n)]  # x_scale="jac": the column norms of J
+    v, dv = _cl_scaling(x, g, lo, hi)
+    Delta = _norm([x[i] * scale_inv[i] / math.sqrt(v[i] * scale_inv[i] if dv[i] else v[i]) for i in range(n)]) or 1.0
     alpha = 0.0
     while True:
-        v, dv = _cl_scaling(x, g, lb, ub)
-        g_norm = float(np.max(np.abs(g * v)))
+        v, dv = _cl_scaling(x, g, lo, hi)
+        g_norm = max(abs(g[i] * v[i]) for i in range(n))
         if g_norm < gtol or nfev == max_nfev:
             break
-        scale = 1.0 / scale_inv
-        d = np.sqrt(np.where(dv != 0, v * scale_inv, v)) * scale
-        diag_h = g * dv * scale
-        g_h = d * g
-        G_h = G * np.outer(d, d)  # J_h^T J_h with J_h = J diag(d)
+        scale = [1.0 / si for si in scale_inv]
+        d = [math.sqrt(v[i] * scale_inv[i] if dv[i] else v[i]) * scale[i] for i in range(n)]
+        diag_h = [g[i] * dv[i] * scale[i] for i in range(n)]
+        g_h = [d[i] * g[i] for i in range(n)]
+        G_h = [[G[i][j] * d[i] * d[j] for j in range(n)] for i in range(n)]  # J_h^T J_h, J_h = J diag(d)
         # the SVD of the augmented Jacobian [J_h; diag(diag_h)^1/2] from that of [R d; diag(diag_h)^1/2]
-        U, s, Vt, info = lapack.dgesdd(np.vstack([R * d, np.diag(np.sqrt(diag_h))]), compute_uv=1,
-                                       full_matrices=0)
+        M = np.zeros((2 * n, n))
+        M[:n] = R * np.array(d)
+        M[n:].flat[:: n + 1] = [math.sqrt(a) for a in diag_h]
+        U, sv, Vt, info = lapack.dgesdd(M, compute_uv=1, full_matrices=0)
         if info != 0:
-            U, s, Vt = np.linalg.svd(np.vstack([R * d, np.diag(np.sqrt(diag_h))]), full_matrices=False)
-        V = Vt.T
-        uf = qf @ U[: qf.size]
+            U, sv, Vt = np.linalg.svd(M, full_matrices=False)
+        s, V, uf = sv.tolist(), Vt.T.tolist(), (qf @ U[:n]).tolist()
         theta = max(0.995, 1.0 - g_norm)
         actual_reduction = -1.0
         done = False
         while actual_reduction <= 0 and nfev < max_nfev:
-            p_h, alpha = _solve_lsq_trust_region(x.size, f.size, uf, s, V, Delta, alpha)
-            p = d * p_h
-            step, step_h, predicted = _select_step(x, G_h, diag_h, g_h, p, p_h, d, Delta, lb, ub, theta)
-            x_new = _strictly_feasible(x + step, lb, ub)
-            f_new = fun(x_new)
+            p_h, alpha = _solve_lsq_trust_region(n, m, uf, s, V, Delta, alpha)
+            p = [d[i] * p_h[i] for i in range(n)]
+            step, step_h, predicted = _select_step(x, G_h, diag_h, g_h, p, p_h, d, Delta, lo, hi, theta)
+            x_new = _strictly_feasible([x[i] + step[i] for i in range(n)], lo, hi)
+            f_new = fun(np.array(x_new))
             nfev += 1
             step_h_norm = _norm(step_h)
-            if not np.all(np.isfinite(f_new)):
+            cost_new = 0.5 * float(f_new @ f_new)
+            if not math.isfinite(cost_new) and not np.all(np.isfinite(f_new)):
                 Delta = 0.25 * step_h_norm
                 continue
-            cost_new = 0.5 * float(f_new @ f_new)
             actual_reduction = cost - cost_new
             Delta_new, ratio = _update_radius(Delta, actual_reduction, predicted, step_h_norm,
                                               step_h_norm > 0.95 * Delta)
@@ -98,16 +106,25 @@ def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callab
             x, f, cost = x_new, f_new, cost_new
             if done:
                 break  # (scipy evaluates the Jacobian here once more, for its result only)
-            R, qf = _triangle(jac(x), f)
-            g, G = R.T @ qf, R.T @ R
-            scale_inv = np.maximum(np.sqrt(np.diag(G)), scale_inv)
+            R, qf = _triangle(jac(np.array(x)), f)
+            g, G = _normal(R, qf)
+            scale_inv = [max(math.sqrt(G[i][i]), scale_inv[i]) for i in range(n)]
         elif done:
             break
-    return TRFResult(x, cost, f, nfev)
+    return TRFResult(np.array(x), cost, f, nfev)
 
 
-def _norm(a: np.ndarray) -> float:
-    return math.sqrt(float(a @ a))
+def _norm(a: Vec) -> float:
+    return math.sqrt(sum(t * t for t in a))
+
+
+def _dot(a: Vec, b: Vec) -> float:
+    return sum(s * t for s, t in zip(a, b))
+
+
+def _quad(G: list[Vec], a: Vec, b: Vec) -> float:
+    """``a^T G b``."""
+    return sum(a[i] * _dot(G[i], b) for i in range(len(a)))
 
 
 def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -120,55 +137,67 @@ def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if info != 0:  # pragma: no cover - LAPACK argument error
         raise np.linalg.LinAlgError(f"dgeqrf failed (info {info})")
     if m > n:
-        return np.triu(qr[:n, :n]), qr[:n, n].copy()
+        R = qr[:n, :n].copy()
+        for i in range(1, n):  # (np.triu, without its per-call mask)
+            R[i, :i] = 0.0
+        return R, qr[:n, n].copy()
     R, qf = np.zeros((n, n)), np.zeros(n)  # fewer samples than parameters: J = Q R[:m]
     R[:m] = np.triu(qr[:m, :n])
     qf[:m] = qr[:m, n]
     return R, qf
 
 
-def _cl_scaling(x: np.ndarray, g: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _normal(R: np.ndarray, qf: np.ndarray) -> tuple[Vec, list[Vec]]:
+    """``J^T f = R^T Q^T f`` and ``J^T J = R^T R`` as floats."""
+    return (R.T @ qf).tolist(), (R.T @ R).tolist()
+
+
+def _cl_scaling(x: Vec, g: Vec, lb: Vec, ub: Vec) -> tuple[Vec, Vec]:
     """Coleman and Li's scaling vector and its derivative (scipy ``CL_scaling_vector``, finite bounds)."""
-    return np.where(g < 0, ub - x, np.where(g > 0, x - lb, 1.0)), np.sign(g)
+    v = [ub[i] - x[i] if g[i] < 0 else (x[i] - lb[i] if g[i] > 0 else 1.0) for i in range(len(x))]
+    return v, [-1.0 if gi < 0 else (1.0 if gi > 0 else 0.0) for gi in g]
 
 
-def _strictly_feasible(x: np.ndarray, lb: np.ndarray, ub: np.ndarray, rstep: float = 0.0) -> np.ndarray:
+def _strictly_feasible(x: Vec, lb: Vec, ub: Vec, rstep: float = 0.0) -> Vec:
     """``x`` with a coordinate on (or within ``rstep`` of) a bound moved inside: one ulp when ``rstep`` is 0,
     else ``rstep`` relative (scipy ``make_strictly_feasible``)."""
-    if rstep == 0 and not ((x <= lb) | (x >= ub)).any():
-        return x
-    out = x.copy()
-    if rstep == 0:
-        lo, hi = x <= lb, x >= ub
-        out[lo] = np.nextafter(lb[lo], ub[lo])
-        out[hi] = np.nextafter(ub[hi], lb[hi])
-    else:
-        tol_lo, tol_hi = rstep * np.maximum(1.0, np.abs(lb)), rstep * np.maximum(1.0, np.abs(ub))
-        lo = x - lb <= np.minimum(ub - x, tol_lo)
-        hi = (ub - x <= np.minimum(x - lb, tol_hi)) & ~lo
-        out[lo] = lb[lo] + tol_lo[lo]
-        out[hi] = ub[hi] - tol_hi[hi]
-    tight = (out < lb) | (out > ub)
-    out[tight] = 0.5 * (lb[tight] + ub[tight])
+    out = list(x)
+    for i, (xi, a, b) in enumerate(zip(x, lb, ub)):
+        if rstep == 0:
+            if xi <= a:
+                out[i] = math.nextafter(a, b)
+            elif xi >= b:
+                out[i] = math.nextafter(b, a)
+        else:
+            ta, tb = rstep * max(1.0, abs(a)), rstep * max(1.0, abs(b))
+            if xi - a <= min(b - xi, ta):
+                out[i] = a + ta
+            elif b - xi <= min(xi - a, tb):
+                out[i] = b - tb
+        if out[i] < a or out[i] > b:
+            out[i] = 0.5 * (a + b)
     return out
 
 
-def _solve_lsq_trust_region(n: int, m: int, uf: np.ndarray, s: np.ndarray, V: np.ndarray, Delta: float,
-                            alpha0: float, rtol: float = 0.01, max_iter: int = 10) -> tuple[np.ndarray, float]:
+def _solve_lsq_trust_region(n: int, m: int, uf: Vec, s: Vec, V: list[Vec], Delta: float, alpha0: float,
+                            rtol: float = 0.01, max_iter: int = 10) -> tuple[Vec, float]:
     """The trust-region step from the SVD (Moré's iteration on the Levenberg-Marquardt parameter; scipy's)."""
-    suf = s * uf
+    suf = [si * ui for si, ui in zip(s, uf)]
 
     def phi_and_derivative(alpha: float) -> tuple[float, float]:
-        denom = s ** 2 + alpha
-        p_norm = float(np.linalg.norm(suf / denom))
-        return p_norm - Delta, -float(np.sum(suf ** 2 / denom ** 3)) / p_norm
+        denom = [si * si + alpha for si in s]
+        p_norm = _norm([a / b for a, b in zip(suf, denom)])
+        return p_norm - Delta, -sum(a * a / b ** 3 for a, b in zip(suf, denom)) / p_norm
+
+    def along(c: Vec) -> Vec:  # -V c
+        return [-_dot(V[i], c) for i in range(n)]
 
     full_rank = m >= n and s[-1] > _EPS * m * s[0]
     if full_rank:
-        p = -V @ (uf / s)
-        if np.linalg.norm(p) <= Delta:
+        p = along([a / b for a, b in zip(uf, s)])
+        if _norm(p) <= Delta:
             return p, 0.0
-    alpha_upper = float(np.linalg.norm(suf)) / Delta
+    alpha_upper = _norm(suf) / Delta
     alpha_lower = 0.0
     if full_rank:
         phi, phi_prime = phi_and_derivative(0.0)
@@ -188,41 +217,37 @@ def _solve_lsq_trust_region(n: int, m: int, uf: np.ndarray, s: np.ndarray, V: np
         alpha -= (phi + Delta) * ratio / Delta
         if abs(phi) < rtol * Delta:
             break
-    p = -V @ (suf / (s ** 2 + alpha))
-    p *= Delta / np.linalg.norm(p)
-    return p, alpha
+    p = along([a / (si * si + alpha) for a, si in zip(suf, s)])
+    k = Delta / _norm(p)
+    return [k * t for t in p], alpha
 
 
-def _quadratic(G: np.ndarray, g: np.ndarray, s: np.ndarray, diag: np.ndarray) -> float:
+def _quadratic(G: list[Vec], g: Vec, s: Vec, diag: Vec) -> float:
     """``0.5 s^T (J^T J + diag) s + g^T s`` (scipy ``evaluate_quadratic``, with ``G = J^T J``)."""
-    return 0.5 * float(s @ G @ s + (s * diag) @ s) + float(s @ g)
+    return 0.5 * (_quad(G, s, s) + sum(si * di * si for si, di in zip(s, diag))) + _dot(s, g)
 
 
-def _step_to_bound(x: np.ndarray, s: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> tuple[float, np.ndarray]:
+def _step_to_bound(x: Vec, s: Vec, lb: Vec, ub: Vec) -> tuple[float, Vec]:
     """The largest step along ``s`` within the bounds and which coordinates hit them (scipy's)."""
-    nz = s != 0
-    steps = np.full(x.shape, np.inf)
-    with np.errstate(over="ignore"):
-        steps[nz] = np.maximum((lb - x)[nz] / s[nz], (ub - x)[nz] / s[nz])
-    t = float(np.min(steps))
-    return t, (steps == t) * np.sign(s)
+    steps = [max((a - xi) / si, (b - xi) / si) if si != 0 else math.inf for xi, si, a, b in zip(x, s, lb, ub)]
+    t = min(steps)
+    return t, [(1.0 if si > 0 else -1.0) if (st == t and si != 0) else 0.0 for st, si in zip(steps, s)]
 
 
-def _select_step(x: np.ndarray, G_h: np.ndarray, diag_h: np.ndarray, g_h: np.ndarray, p: np.ndarray,
-                 p_h: np.ndarray, d: np.ndarray, Delta: float, lb: np.ndarray, ub: np.ndarray,
-                 theta: float) -> tuple[np.ndarray, np.ndarray, float]:
+def _select_step(x: Vec, G_h: list[Vec], diag_h: Vec, g_h: Vec, p: Vec, p_h: Vec, d: Vec, Delta: float,
+                 lb: Vec, ub: Vec, theta: float) -> tuple[Vec, Vec, float]:
     """The best of the trust-region step (cut at a bound), its reflection and the scaled gradient (scipy's)."""
-    if np.all((x + p >= lb) & (x + p <= ub)):
+    n = len(x)
+    if all(a <= xi + pi <= b for xi, pi, a, b in zip(x, p, lb, ub)):
         return p, p_h, -_quadratic(G_h, g_h, p_h, diag_h)
     p_stride, hits = _step_to_bound(x, p, lb, ub)
-    r_h = p_h.copy()
-    r_h[hits.astype(bool)] *= -1
-    r = d * r_h
-    p *= p_stride
-    p_h *= p_stride
-    x_on_bound = x + p
+    r_h = [-t if hit else t for t, hit in zip(p_h, hits)]
+    r = [d[i] * r_h[i] for i in range(n)]
+    p = [t * p_stride for t in p]
+    p_h = [t * p_stride for t in p_h]
+    x_on_bound = [x[i] + p[i] for i in range(n)]
     # the reflected direction leaves the feasible box or the trust region first
-    a2, b2, c2 = float(r_h @ r_h), float(p_h @ r_h), float(p_h @ p_h) - Delta ** 2
+    a2, b2, c2 = _dot(r_h, r_h), _dot(p_h, r_h), _dot(p_h, p_h) - Delta ** 2
     q = -(b2 + math.copysign(math.sqrt(b2 * b2 - a2 * c2), b2))
     to_tr = max(q / a2, c2 / q)
     to_bound, _ = _step_to_bound(x_on_bound, r, lb, ub)
@@ -233,28 +258,28 @@ def _select_step(x: np.ndarray, G_h: np.ndarray, diag_h: np.ndarray, g_h: np.nda
     else:
         r_stride_l, r_stride_u = 0.0, -1.0
     if r_stride_l <= r_stride_u:
-        a = 0.5 * float(r_h @ G_h @ r_h + (r_h * diag_h) @ r_h)
-        b = float(r_h @ g_h) + float(p_h @ G_h @ r_h) + float((p_h * diag_h) @ r_h)
-        c = 0.5 * float(p_h @ G_h @ p_h) + float(g_h @ p_h) + 0.5 * float((p_h * diag_h) @ p_h)
+        pd = [p_h[i] * diag_h[i] for i in range(n)]
+        a = 0.5 * (_quad(G_h, r_h, r_h) + sum(t * di * t for t, di in zip(r_h, diag_h)))
+        b = _dot(r_h, g_h) + _quad(G_h, p_h, r_h) + _dot(pd, r_h)
+        c = 0.5 * _quad(G_h, p_h, p_h) + _dot(g_h, p_h) + 0.5 * _dot(pd, p_h)
         r_stride, r_value = _minimize_1d(a, b, r_stride_l, r_stride_u, c)
-        r_h *= r_stride
-        r_h += p_h
-        r = r_h * d
+        r_h = [r_h[i] * r_stride + p_h[i] for i in range(n)]
+        r = [r_h[i] * d[i] for i in range(n)]
     else:
         r_value = math.inf
-    p *= theta
-    p_h *= theta
+    p = [t * theta for t in p]
+    p_h = [t * theta for t in p_h]
     p_value = _quadratic(G_h, g_h, p_h, diag_h)
-    ag_h = -g_h
-    ag = d * ag_h
-    to_tr = Delta / float(np.linalg.norm(ag_h))
+    ag_h = [-t for t in g_h]
+    ag = [d[i] * ag_h[i] for i in range(n)]
+    to_tr = Delta / _norm(ag_h)
     to_bound, _ = _step_to_bound(x, ag, lb, ub)
     ag_stride = theta * to_bound if to_bound < to_tr else to_tr
-    a = 0.5 * float(ag_h @ G_h @ ag_h + (ag_h * diag_h) @ ag_h)
-    b = float(g_h @ ag_h)
+    a = 0.5 * (_quad(G_h, ag_h, ag_h) + sum(t * di * t for t, di in zip(ag_h, diag_h)))
+    b = _dot(g_h, ag_h)
     ag_stride, ag_value = _minimize_1d(a, b, 0.0, ag_stride, 0.0)
-    ag_h *= ag_stride
-    ag *= ag_stride
+    ag_h = [t * ag_stride for t in ag_h]
+    ag = [t * ag_stride for t in ag]
     if p_value < r_value and p_value < ag_value:
         return p, p_h, -p_value
     if r_value < p_value and r_value < ag_value:
