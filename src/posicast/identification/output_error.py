@@ -210,13 +210,15 @@ class OEModel:
         for lo in range(0, len(thetas), max(1, _BATCH // (N * (self._width() + 1)))):
             chunk = thetas[lo: lo + max(1, _BATCH // (N * (self._width() + 1)))]
             X = np.empty((len(chunk),) + (self._width(), N))
-            X[:] = self._rows(chunk[0])[0]
-            per, last = self._per_mode(), self.n - 1  # the candidates differ in their last mode only
+            X[0] = self._rows(chunk[0])[0]
+            a, b = (self.n - 1) * self._per_mode(), self.n * self._per_mode()  # the rows of the last mode
             for c, th in enumerate(chunk[1:], 1):
                 if not np.array_equal(th[:-2], chunk[0][:-2]):
                     X[c] = self._rows(th)[0]
-                else:
-                    self._mode_rows(th[-2], th[-1], X[c, last * per: (last + 1) * per])
+                    continue
+                # the candidates differ in their last mode only: the other rows are the first candidate's
+                X[c, :a], X[c, b:] = X[0, :a], X[0, b:]
+                self._mode_rows(th[-2], th[-1], X[c, a:b])
             if self.w is not None:
                 X *= self.w
             gram = X @ X.transpose(0, 2, 1)

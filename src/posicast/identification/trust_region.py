@@ -48,6 +48,10 @@ def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callab
     """Minimise ``0.5 |fun(x)|^2`` over ``lb <= x <= ub`` (scipy's ``trf_bounds``; ``x0`` is moved strictly
     inside first, as scipy does).  Everything after one QR per Jacobian is n x n."""
     n = int(np.size(x0))
+    if np.shape(lb) != (n,) or np.shape(ub) != (n,) or not np.all(np.asarray(lb) < np.asarray(ub)):
+        raise ValueError(f"lb and ub must be {n} finite bounds with lb < ub, got {lb!r} and {ub!r}")
+    if not np.all((np.asarray(x0) >= lb) & (np.asarray(x0) <= ub)):
+        raise ValueError(f"x0 must lie within the bounds [lb, ub], got {x0!r}")
     lo, hi = [float(a) for a in lb], [float(a) for a in ub]
     x = _strictly_feasible([float(a) for a in x0], lo, hi, rstep=1e-10)
     f = fun(np.array(x))
