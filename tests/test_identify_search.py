@@ -99,3 +99,14 @@ def test_free_response_rows_are_the_complex_powers():
     w, z = TRUE.omega, 0.03
     lam_k = np.exp(complex(-z * w, w * math.sqrt(1 - z * z)) * h * np.arange(d.y.size))
     assert np.max(np.abs(rows[0] - lam_k.real)) < 1e-13 and np.max(np.abs(rows[1] - lam_k.imag)) < 1e-13
+
+
+@pytest.mark.parametrize("n", [1, 2, 20, 2000])
+def test_forced_response_filter_is_lfilters(n, monkeypatch):
+    """The compiled filter called directly gives lfilter's output, bit for bit, and the fallback is lfilter."""
+    u = np.random.default_rng(n).standard_normal(n)
+    lam = complex(0.95, 0.2)
+    ref = output_error.signal.lfilter([0.0, 1.0], [1.0, -2.0 * lam.real, abs(lam) ** 2], u)
+    assert np.array_equal(output_error._forced(lam, u), ref)
+    monkeypatch.setattr(output_error, "_linear_filter", None)
+    assert np.array_equal(output_error._forced(lam, u), ref)

@@ -38,9 +38,12 @@ _HEAD = 1 << 15
 _SHORTLIST = 4
 #: Elements of the stacked regression columns per batch when the start's candidates are ranked (16 MB).
 _BATCH = 1 << 21
-#: The numerator z^-1 of the forced response, as an array: lfilter converts a list through its
-#: array-API layer, which tripled its cost on short records (issue #15).
+#: The numerator z^-1 of the forced response.
 _DELAY = np.array([0.0, 1.0])
+try:  # scipy's compiled filter, which lfilter runs after its array-API conversions: half the cost on short records
+    from scipy.signal._sigtools import _linear_filter
+except ImportError:  # pragma: no cover - a scipy that moved it
+    _linear_filter = None
 #: The damping ratios the time-domain fits search (also the clip of the frequency-domain and decay starts).
 ZETA_MIN, ZETA_MAX = 1e-5, 0.95
 
@@ -95,7 +98,8 @@ class OEModel:
         """The regression columns as rows ``(k, N)`` (each contiguous) and per mode what its derivatives need: ``(first row, lambda, x1 or None, lambda^k or None, omega, zeta)``."""
         per = self._per_mode()
         rows = np.empty((self._width(), self.y.size))
-        parts = [(i * per,) + self._mode_rows(theta[2 * i], theta[2 * i + 1], rows[i * per: (i + 1) * per])
+        th = theta.tolist()
+        parts = [(i * per,) + self._mode_rows(th[2 * i], th[2 * i + 1], rows[i * per: (i + 1) * per])
                  for i in range(self.n)]
         j = self.n * per
         if self.feedthrough:
@@ -128,18 +132,36 @@ class OEModel:
         x1 = powers = None
         j = 0
         if self.u is not None:
-            x1 = signal.lfilter(_DELAY, np.array([1.0, -2.0 * lam.real, abs(lam) ** 2]), self.u)
+            x1 = _forced(lam, self.u)
             out[0] = x1
             out[1, 0] = 0.0
             out[1, 1:] = x1[:-1]
             j = 2
         if self.initial_state:
-            # lambda^k = e^(Re(p) h k) (cos + j sin)(Im(p) h k): numpy's complex exp, in real passes (4x faster)
-            mag, ang = np.exp((p.real * self.h) * self.k), (p.imag * self.h) * self.k
-            np.multiply(mag, np.cos(ang), out=out[j])
-            np.multiply(mag, np.sin(ang), out=out[j + 1])
+            self._free_rows(p, out[j: j + 2])
             powers = out[j] + 1j * out[j + 1]
         return lam, x1, powers, w, z
+
+    def _free_rows(self, p: complex, out: np.ndarray) -> None:
+        """``Re, Im lambda^k`` into ``out`` (2, N): ``e^(Re(p) h k) (cos, sin)(Im(p) h k)``, numpy's complex
+        exp in real passes (4x faster)."""
+        mag, ang = np.exp((p.real * self.h) * self.k), (p.imag * self.h) * self.k
+        np.multiply(mag, np.cos(ang), out=out[0])
+        np.multiply(mag, np.sin(ang), out=out[1])
+
+    def term_rows(self, name: str, theta: np.ndarray) -> np.ndarray | None:
+        """The rows the nuisance term ``name`` (feedthrough, offset, initial_state) adds to this model at
+        ``theta``, or None when this model has it already (or cannot: a direct term without an input)."""
+        if name == "feedthrough":
+            return None if self.feedthrough or self.u is None else self.u[None, :]
+        if name == "offset":
+            return None if self.offset else np.ones((1, self.y.size))
+        if self.initial_state:
+            return None
+        out = np.empty((2 * self.n, self.y.size))
+        for i, (_, _, _, _, w, z) in enumerate(self._fit(theta).parts):
+            self._free_rows(complex(-z * w, w * math.sqrt(1.0 - z * z)), out[2 * i: 2 * i + 2])
+        return out
 
     def _per_mode(self) -> int:
         return (2 if self.u is not None else 0) + (2 if self.initial_state else 0)
@@ -192,13 +214,7 @@ class OEModel:
             return self._last[1]
         rows, parts = self._rows(theta)
         Rw, yw = (rows, self.y) if self.w is None else (rows * self.w, self.y * self.w)
-        gram = Rw @ Rw.T
-        nrm = np.sqrt(gram.diagonal())
-        if not nrm.all():
-            nrm = np.where(nrm == 0, 1.0, nrm)
-        pinv, rank = _gram_pinv(gram / np.multiply.outer(nrm, nrm))
-        coef = (pinv @ ((Rw @ yw) / nrm)) / nrm  # of the raw columns
-        fit = _Projection(rows, Rw, nrm, pinv, coef, yw - coef @ Rw, rank, parts)
+        fit = _Projection(rows, Rw, *_project(Rw, yw), parts)
         self._last = (key, fit)
         return fit
 
@@ -212,12 +228,17 @@ class OEModel:
             X = np.empty((len(chunk),) + (self._width(), N))
             X[0] = self._rows(chunk[0])[0]
             a, b = (self.n - 1) * self._per_mode(), self.n * self._per_mode()  # the rows of the last mode
+            first = chunk[0][:-2].tolist()
             for c, th in enumerate(chunk[1:], 1):
-                if not np.array_equal(th[:-2], chunk[0][:-2]):
-                    X[c] = self._rows(th)[0]
+                th = th.tolist()
+                if th[:-2] != first:
+                    X[c] = self._rows(np.array(th))[0]
                     continue
                 # the candidates differ in their last mode only: the other rows are the first candidate's
-                X[c, :a], X[c, b:] = X[0, :a], X[0, b:]
+                if a:
+                    X[c, :a] = X[0, :a]
+                if b < X.shape[1]:
+                    X[c, b:] = X[0, b:]
                 self._mode_rows(th[-2], th[-1], X[c, a:b])
             if self.w is not None:
                 X *= self.w
@@ -250,21 +271,22 @@ class OEModel:
         Rw, r = fit.weighted, fit.residual
         dphi_c = np.empty((2 * self.n, self.y.size))  # dPhi c, one row per parameter
         g = np.zeros((2 * self.n, Rw.shape[0]))  # dPhi^T r (unit-norm columns), one row per parameter
+        coef, nrm = fit.coef.tolist(), fit.nrm.tolist()
         for i, (start, lam, x1, powers, w, z) in enumerate(fit.parts):
             p = complex(-z * w, w * math.sqrt(1.0 - z * z))
-            zeta_free = ZETA_MIN < theta[2 * i + 1] < ZETA_MAX  # the clip holds zeta still outside the bounds
+            zeta_free = ZETA_MIN < float(theta[2 * i + 1]) < ZETA_MAX  # the clip holds zeta still outside the bounds
             dps = (p, complex(-w, -w * z / math.sqrt(1.0 - z * z)) if zeta_free else 0j)
             col = start
             if x1 is not None:
                 # columns x1 and x2 = z^-1 x1 with d x1 = -(da1 z^-1 + da2 z^-2) / A(z) x1 = -(da1 s1 + da2 z^-1 s1):
                 # one filter for both parameters, and dPhi c, dPhi^T r from shifts of s1
-                s1 = signal.lfilter(_DELAY, np.array([1.0, -2.0 * lam.real, abs(lam) ** 2]), x1)
+                s1 = _forced(lam, x1)
                 rw = r if self.w is None else r * self.w
-                c0, c1 = fit.coef[col], fit.coef[col + 1]
+                c0, c1 = coef[col], coef[col + 1]
                 q = c0 * s1
                 q[1:] += c1 * s1[:-1]  # (c0 + c1 z^-1) s1
-                dots = [s1 @ rw, s1[:-1] @ rw[1:], s1[:-2] @ rw[2:]]  # (z^-m s1) . r, m = 0, 1, 2
-                nrm0, nrm1 = fit.nrm[col], fit.nrm[col + 1]
+                dots = [float(s1 @ rw), float(s1[:-1] @ rw[1:]), float(s1[:-2] @ rw[2:])]  # (z^-m s1) . r, m = 0, 1, 2
+                nrm0, nrm1 = nrm[col], nrm[col + 1]
                 for j, dp in enumerate(dps):
                     dlam = lam * self.h * dp
                     da1, da2 = -2.0 * dlam.real, 2.0 * (lam.conjugate() * dlam).real
@@ -305,6 +327,26 @@ class _Projection(NamedTuple):
     residual: np.ndarray
     rank: int
     parts: list
+
+
+def _project(Rw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Least squares of ``yw`` on the rows ``Rw``: the rows' norms, the pseudo-inverse of the unit-norm rows'
+    Gram matrix, the coefficients (of the raw rows), the residual and the rank."""
+    gram = Rw @ Rw.T
+    nrm = np.sqrt(gram.diagonal())
+    if not nrm.all():
+        nrm = np.where(nrm == 0, 1.0, nrm)
+    pinv, rank = _gram_pinv(gram / np.multiply.outer(nrm, nrm))
+    coef = (pinv @ ((Rw @ yw) / nrm)) / nrm
+    return nrm, pinv, coef, yw - coef @ Rw, rank
+
+
+def _forced(lam: complex, x: np.ndarray) -> np.ndarray:
+    """``z^-1 / A(z) x`` with ``A(z) = (1 - lambda z^-1)(1 - conj(lambda) z^-1)`` (the mode's forced response)."""
+    a = np.array([1.0, -2.0 * lam.real, abs(lam) ** 2])
+    if _linear_filter is not None and x.dtype == np.float64:
+        return _linear_filter(_DELAY, a, x, -1)
+    return signal.lfilter(_DELAY, a, x)
 
 
 def _gram_pinv(gram: np.ndarray) -> tuple[np.ndarray, int]:
@@ -457,15 +499,17 @@ def _fit_auto_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int
     """
     weights = settings.weights
     base = {name: (False if val == "auto" else bool(val)) for name, val in terms.items()}
-    out, rss, k = _fit_fixed_terms(u, y, fs, n_modes, settings.covariance, base, start=start, method=method,
-                                   weights=weights)
-    th = np.array([[math.log(m.omega), m.zeta] for m in out.modes]).ravel()
+    (out, rss, k), model, th = _fit_fixed(u, y, fs, n_modes, settings.covariance, base, start=start,
+                                          method=method, weights=weights)
     n_lin = k - th.size
+    rows = model.basis(th).T  # the fitted model's columns at its poles; each trial adds its term's
     chosen = dict(base)
     for name in auto:
-        trial = dict(base)
-        trial[name] = True
-        e1, _, n_lin1 = OEModel(u, y, 1.0 / fs, n_modes, weights=weights, **trial).project(th)
+        more = model.term_rows(name, th)
+        if more is None:
+            continue
+        Rw = np.vstack([rows, more])
+        e1, n_lin1 = _project(Rw if weights is None else Rw * weights, y if weights is None else y * weights)[3:]
         extra = n_lin1 - n_lin
         dof = (y.size if weights is None else int(np.count_nonzero(weights))) - k - extra
         if extra <= 0 or dof <= 0:
@@ -484,6 +528,13 @@ def _fit_fixed_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: in
                      terms: dict[str, bool], *, start: Sequence[Mode] | None, method: str,
                      weights: np.ndarray | None) -> OEFit:
     """The fit with each nuisance term on or off: best of three damping scales for one mode, intervals, tests."""
+    return _fit_fixed(u, y, fs, n_modes, covariance, terms, start=start, method=method, weights=weights)[0]
+
+
+def _fit_fixed(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, covariance: str,
+               terms: dict[str, bool], *, start: Sequence[Mode] | None, method: str,
+               weights: np.ndarray | None) -> tuple[OEFit, OEModel, np.ndarray]:
+    """:func:`_fit_fixed_terms`, with its model and the fitted ``(ln omega, zeta)`` (in the model's order)."""
     h = 1.0 / fs
     model = OEModel(u, y, h, n_modes, weights=weights, **terms)
     if start is None:
@@ -512,7 +563,7 @@ def _fit_fixed_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: in
     out = Identification(modes, ivs, method, fit_percent(y, y_hat), pw, used, y_hat, e, fs,
                          tests=[tests[i] for i in order])
     rss = float(e @ e)
-    return OEFit(out, rss, n_lin + th.size)
+    return OEFit(out, rss, n_lin + th.size), model, th
 
 
 @v.renamed_keywords(fs="sample_rate")
