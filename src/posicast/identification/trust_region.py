@@ -75,13 +75,12 @@ def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callab
         g_h = [d[i] * g[i] for i in range(n)]
         G_h = [[G[i][j] * d[i] * d[j] for j in range(n)] for i in range(n)]  # J_h^T J_h, J_h = J diag(d)
         # the SVD of the augmented Jacobian [J_h; diag(diag_h)^1/2] from that of [R d; diag(diag_h)^1/2]
-        M = np.zeros((2 * n, n))
-        M[:n] = R * np.array(d)
-        M[n:].flat[:: n + 1] = [math.sqrt(a) for a in diag_h]
-        U, sv, Vt, info = lapack.dgesdd(M, compute_uv=1, full_matrices=0)
+        M = np.array([[R[i][j] * d[j] for j in range(n)] for i in range(n)]
+                     + [[math.sqrt(diag_h[i]) if i == j else 0.0 for j in range(n)] for i in range(n)])
+        U, sv, Vt, info = lapack.dgesdd(M, 1, 0)  # (compute_uv, full_matrices)
         if info != 0:
             U, sv, Vt = np.linalg.svd(M, full_matrices=False)
-        s, V, uf = sv.tolist(), Vt.T.tolist(), (qf @ U[:n]).tolist()
+        s, V, uf = sv.tolist(), Vt.T.tolist(), (np.array(qf) @ U[:n]).tolist()
         theta = max(0.995, 1.0 - g_norm)
         actual_reduction = -1.0
         done = False
@@ -131,7 +130,7 @@ def _quad(G: list[Vec], a: Vec, b: Vec) -> float:
     return sum(a[i] * _dot(G[i], b) for i in range(len(a)))
 
 
-def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[list[Vec], Vec]:
     """``R`` and ``Q^T f`` of the QR factorisation ``J = Q R`` (one QR of ``[J, f]``, Q not formed)."""
     m, n = J.shape
     a = np.empty((m, n + 1), order="F")
@@ -140,20 +139,16 @@ def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     qr, _, _, info = lapack.dgeqrf(a, overwrite_a=1)
     if info != 0:  # pragma: no cover - LAPACK argument error
         raise np.linalg.LinAlgError(f"dgeqrf failed (info {info})")
-    if m > n:
-        R = qr[:n, :n].copy()
-        for i in range(1, n):  # (np.triu, without its per-call mask)
-            R[i, :i] = 0.0
-        return R, qr[:n, n].copy()
-    R, qf = np.zeros((n, n)), np.zeros(n)  # fewer samples than parameters: J = Q R[:m]
-    R[:m] = np.triu(qr[:m, :n])
-    qf[:m] = qr[:m, n]
-    return R, qf
+    top = qr[: min(m, n)].tolist()  # fewer samples than parameters: J = Q R[:m], the other rows 0
+    top += [[0.0] * (n + 1)] * (n - len(top))
+    return [[row[j] if j >= i else 0.0 for j in range(n)] for i, row in enumerate(top)], [row[n] for row in top]
 
 
-def _normal(R: np.ndarray, qf: np.ndarray) -> tuple[Vec, list[Vec]]:
-    """``J^T f = R^T Q^T f`` and ``J^T J = R^T R`` as floats."""
-    return (R.T @ qf).tolist(), (R.T @ R).tolist()
+def _normal(R: list[Vec], qf: Vec) -> tuple[Vec, list[Vec]]:
+    """``J^T f = R^T Q^T f`` and ``J^T J = R^T R``."""
+    n = len(qf)
+    g = [sum(R[k][i] * qf[k] for k in range(n)) for i in range(n)]
+    return g, [[sum(R[k][i] * R[k][j] for k in range(n)) for j in range(n)] for i in range(n)]
 
 
 def _cl_scaling(x: Vec, g: Vec, lb: Vec, ub: Vec) -> tuple[Vec, Vec]:
