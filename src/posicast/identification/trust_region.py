@@ -46,7 +46,36 @@ def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callab
                             x0: np.ndarray, lb: np.ndarray, ub: np.ndarray, *, ftol: float, xtol: float,
                             gtol: float, max_nfev: int) -> TRFResult:
     """Minimise ``0.5 |fun(x)|^2`` over ``lb <= x <= ub`` (scipy's ``trf_bounds``; ``x0`` is moved strictly
-    inside first, as scipy does).  Everything after one QR per Jacobian is n x n."""
+    inside first, as scipy does).  Everything after one QR per Jacobian is n x n.
+
+    Parameters
+    ----------
+    fun, jac : callable
+        The residual (m,) and its Jacobian (m, n) at ``x``.
+    x0, lb, ub : ndarray (n,)
+        Start and finite bounds, ``lb < ub``, ``lb <= x0 <= ub``.
+    ftol, xtol, gtol : float
+        scipy's tolerances (relative cost change with a good step, relative step, scaled gradient).
+    max_nfev : int
+        Most evaluations of ``fun``.
+
+    Returns
+    -------
+    TRFResult
+        ``x``, ``cost`` (half the sum of squares), ``fun`` (the residual at ``x``), ``nfev``.
+
+    Examples
+    --------
+    Rosenbrock's valley with its minimum (1, 1) cut off by ``x[1] >= 1.5`` (scipy's documentation):
+
+    >>> import numpy as np
+    >>> fun = lambda x: np.array([10 * (x[1] - x[0] ** 2), 1 - x[0]])
+    >>> jac = lambda x: np.array([[-20 * x[0], 10.0], [-1.0, 0.0]])
+    >>> r = trust_region_reflective(fun, jac, np.array([2.0, 2.0]), np.array([-3.0, 1.5]),
+    ...                             np.array([3.0, 3.0]), ftol=1e-12, xtol=1e-10, gtol=1e-12, max_nfev=200)
+    >>> np.round(r.x, 8).tolist()
+    [1.22437075, 1.5]
+    """
     n = int(np.size(x0))
     if np.shape(lb) != (n,) or np.shape(ub) != (n,) or not np.all(np.asarray(lb) < np.asarray(ub)):
         raise ValueError(f"lb and ub must be {n} finite bounds with lb < ub, got {lb!r} and {ub!r}")
