@@ -22,7 +22,16 @@ numerator from one linear least-squares solve there; only the direct fit's
 the direct fit.  BLAS on one thread for both (OPENBLAS_NUM_THREADS=1, see
 bench_simulate.py).
 
-Usage: python benchmarks/bench_identify.py [--quick] [--samples N] [--scale-only]
+Third table (issue #15, wave 5): the OE fits of the demo's identification section (``make demo``:
+seed 002 Tables 1-3 and the acceptance scenarios, 880 fits of 20-2000 samples, the seeds of
+``posicast_reports.identification_report.trial_stats``), CPU time (``time.process_time``), with
+posicast's search (identification/trust_region.py) and, alternating in the same run, with
+scipy's ``least_squares(method="trf")`` in its place (the search before wave 5; every other part
+of the fit the same).  The previous posicast figure is the whole fit before wave 5 (commit
+0f959c0), measured alternating with this one on the same machine (benchmarks/RESULTS.md).
+``--quick`` runs a fifth of the trials.
+
+Usage: python benchmarks/bench_identify.py [--quick] [--samples N] [--scale-only] [--demo-only]
 """
 
 from __future__ import annotations
@@ -42,6 +51,7 @@ import numpy as np  # noqa: E402
 from scipy import optimize, signal  # noqa: E402
 
 import posicast  # noqa: E402
+from posicast.identification import output_error  # noqa: E402
 from posicast.identification.output_error import OEModel, _start  # noqa: E402
 from posicast.testing import synthetic  # noqa: E402
 
@@ -49,6 +59,20 @@ TRUE = posicast.Mode.from_hz(28.0, 0.05)
 #: the previous posicast figure for 200k samples (issue #15 table): 3.2 s, 2-3x the direct fit
 PREVIOUS_SCALE = (3.2, "2-3x")
 GOAL_SCALE = 1.0
+#: the demo's OE fits before wave 5 (commit 0f959c0), CPU seconds, median of 3 runs alternating with this
+#: branch at load average 4.5-4.9 (RESULTS.md; the ratio against it holds only at a similar load)
+PREVIOUS_DEMO = 6.37
+#: issue #15 (wave 5): the demo's OE fits >= 2.5x faster, <= 2.5 s CPU
+GOAL_DEMO = 2.5
+#: the OE scenarios of posicast_reports.identification_report.identification_section:
+#: (input, samples, output noise, trials, step period, input noise)
+DEMO = ([("step", n, 0.01, 30, None, 0.0) for n in (20, 40, 100, 200, 400)]
+        + [(k, 20, 0.01, 30, None, 0.0) for k in ("impulse", "step", "ramp", "harmonic")]
+        + [("step", 20, z, 30, None, 0.0) for z in (0.0, 0.01, 0.03, 0.05)]
+        + [("step", 400, z, 30, None, 0.0) for z in (0.01, 0.05)]
+        + [("step", 800, 0.05, 100, None, 0.0), ("step", 2000, 0.05, 100, 1.0, 0.0),
+           ("random_binary", 2000, 0.05, 100, None, 0.0), ("chirp", 2000, 0.05, 100, None, 0.0),
+           ("random_binary", 2000, 0.05, 30, None, 0.05)])
 
 
 def _zoh_den(lw: float, z: float, h: float) -> np.ndarray:
@@ -104,6 +128,69 @@ def scale(n: int, reps: int) -> None:
           f"({ratio:.2f}x)")
 
 
+def _scipy_search(model: OEModel, theta0: np.ndarray, w_min: float):
+    """The search before wave 5: scipy's least_squares (trf) with the same bounds and tolerances."""
+    lo, hi = output_error._bounds(model.n, model.h, w_min)
+    x0 = np.clip(theta0, lo + 1e-9, hi - 1e-9)
+    opts = {"bounds": (lo, hi), "method": "trf", "x_scale": "jac", "xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12,
+            "max_nfev": 200 * len(x0)}
+    if model.y.size > output_error._LONG_RECORD:
+        short = model.head(output_error._HEAD)
+        x1 = np.clip(optimize.least_squares(short.residual, x0, jac=short.jacobian, **opts).x, lo + 1e-9, hi - 1e-9)
+        r0, r1 = model.residual(x0), model.residual(x1)
+        if float(r1 @ r1) < float(r0 @ r0):
+            x0 = x1
+    res = optimize.least_squares(model.residual, x0, jac=model.jacobian, **opts)
+    return res.x, res
+
+
+def _demo_fits(data: list) -> tuple[float, list]:
+    """CPU seconds of identify (OE) over the records, and the estimates (None where no mode was found)."""
+    out = []
+    t0 = time.process_time()
+    for d in data:
+        try:
+            r = posicast.identify(d.t, d.u, d.y)
+            out.append((r.modes[0].omega, r.modes[0].zeta, r.intervals[0]))
+        except ValueError:
+            out.append(None)
+    return time.process_time() - t0, out
+
+
+def demo(reps: int, fraction: int) -> None:
+    """Issue #15 (wave 5): the demo's identification-section OE fits, posicast's search against scipy's."""
+    data = [synthetic(TRUE, inp, n=n, noise=noise, input_noise=inn, seed=s, period=per)
+            for inp, n, noise, trials, per, inn in DEMO for s in range(max(1, trials // fraction))]
+    ours, theirs = [], []
+    lean = output_error._least_squares
+    for _ in range(reps):
+        t, est = _demo_fits(data)
+        ours.append(t)
+        output_error._least_squares = _scipy_search
+        try:
+            t, ref = _demo_fits(data)
+        finally:
+            output_error._least_squares = lean
+        theirs.append(t)
+    a, b = statistics.median(ours), statistics.median(theirs)
+    both = [(e, r) for e, r in zip(est, ref) if e is not None and r is not None]
+    dw = max(abs(e[0] / r[0] - 1) for e, r in both)
+    dz = max(abs(e[1] / r[1] - 1) for e, r in both)
+    div = max(abs((e[2].zeta[1] - e[2].zeta[0]) / (r[2].zeta[1] - r[2].zeta[0]) - 1) for e, r in both)
+    refused = (sum(e is None for e in est), sum(r is None for r in ref))
+    print(f"\nthe demo's identification section: {len(data)} OE fits of 20-2000 samples, CPU time, median of {reps} "
+          f"alternating runs (load average {os.getloadavg()[0]:.1f})\n")
+    print("| search | CPU [s] | / scipy's search | no mode found |")
+    print("|---|---|---|---|")
+    print(f"| posicast (identification/trust_region.py) | {a:.2f} | {a / b:.2f} | {refused[0]} |")
+    print(f"| scipy least_squares trf (before wave 5) | {b:.2f} | 1.00 | {refused[1]} |")
+    print(f"\nsame estimates: omega {dw:.1e}, zeta {dz:.1e}, zeta interval width {div:.1e} relative (largest)")
+    if fraction == 1:
+        print(f"previous posicast (the whole fit, commit 0f959c0, at load 4.5-4.9): {PREVIOUS_DEMO} s; now "
+              f"{PREVIOUS_DEMO / a:.2f}x faster; goal >= 2.5x and <= {GOAL_DEMO} s: "
+              f"{'met' if a <= GOAL_DEMO and PREVIOUS_DEMO / a >= 2.5 else 'NOT met'} ({a:.2f} s)")
+
+
 def _ema(d):
     from sdypy import EMA
 
@@ -123,9 +210,13 @@ def main() -> int:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--samples", type=int, default=200_000)
     ap.add_argument("--scale-only", action="store_true", help="only the long-record table (issue #15)")
+    ap.add_argument("--demo-only", action="store_true", help="only the demo's OE fits (issue #15, wave 5)")
     args = ap.parse_args()
     if args.scale_only:
         scale(args.samples, 3 if args.quick else 7)
+        return 0
+    if args.demo_only:
+        demo(1 if args.quick else 3, 5 if args.quick else 1)
         return 0
     trials = 15 if args.quick else 100
     try:
@@ -174,6 +265,7 @@ def main() -> int:
                   f"{100 * a[:, 1].mean():+.2f} ± {100 * a[:, 1].std():.2f} | {cov} |"
                   + (f" ({len(rows)}/{trials} succeeded)" if len(rows) < trials else ""))
     scale(args.samples, 3 if args.quick else 7)
+    demo(1 if args.quick else 3, 5 if args.quick else 1)
     return 0
 
 

@@ -4,7 +4,7 @@ The model is ``y = sum_k (b0_k + b1_k s) / (s^2 + 2 zeta_k omega_k s + omega_k^2
 plus each mode's free response (unknown initial state), sampled exactly under a
 zero-order hold.  The numerators, the feed-through ``d`` (an accelerometer's ``s^2``
 term) and the offset ``c`` enter linearly and are projected out; only
-``(ln omega_k, zeta_k)`` are searched (scipy.optimize.least_squares), from the peaks
+``(ln omega_k, zeta_k)`` are searched (trust-region reflective, :mod:`.trust_region`), from the peaks
 of the empirical transfer function.  Output noise does not bias it (the criterion
 is the simulated, not the predicted, output).  Intervals: :mod:`.fit_statistics`.
 Modes the data do not demand are dropped (:mod:`.significance`).
@@ -12,17 +12,20 @@ Modes the data do not demand are dropped (:mod:`.significance`).
 
 from __future__ import annotations
 
+import cmath
 import math
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from scipy import optimize, signal, special
+from scipy import signal, special
+from scipy.linalg import lapack
 
 from .. import _validate as v
 from ..modes import Mode
 from .fit_statistics import fit_percent, half_power_span, pole_intervals, whiteness
 from .results import Identification, PeakGuess
+from .trust_region import TRFResult, trust_region_reflective
 from .significance import ModeTest, NoModeFound, describe_failure, search_cells, wald_test
 
 __all__ = ["ZETA_MIN", "ZETA_MAX", "OEModel", "OESettings", "OEFit", "fit_oe", "significant_oe"]
@@ -33,6 +36,14 @@ _LONG_RECORD = 1 << 16
 _HEAD = 1 << 15
 #: How many start candidates ranked on the start of a long record are ranked again on all of it.
 _SHORTLIST = 4
+#: Elements of the stacked regression columns per batch when the start's candidates are ranked (16 MB).
+_BATCH = 1 << 21
+#: The numerator z^-1 of the forced response.
+_DELAY = np.array([0.0, 1.0])
+try:  # scipy's compiled filter, which lfilter runs after its array-API conversions: half the cost on short records
+    from scipy.signal._sigtools import _linear_filter
+except ImportError:  # pragma: no cover - a scipy that moved it
+    _linear_filter = None
 #: The damping ratios the time-domain fits search (also the clip of the frequency-domain and decay starts).
 ZETA_MIN, ZETA_MAX = 1e-5, 0.95
 
@@ -73,7 +84,7 @@ class OEModel:
         self.k = np.arange(y.size, dtype=float)
         self.n_lin_last = 0
         self._free: dict[int, list[int]] = {}
-        self._last: tuple[np.ndarray, _Projection] | None = None
+        self._last: tuple[bytes, _Projection] | None = None
 
     def basis(self, theta: np.ndarray) -> np.ndarray:
         return self.columns(theta)[0]
@@ -81,51 +92,83 @@ class OEModel:
     def columns(self, theta: np.ndarray) -> tuple[np.ndarray, list[list[int]]]:
         """The regression columns at ``theta`` and, per mode, the indices of the columns that make it a mode
         of this data: its input-driven columns when there is an input, else its free response."""
-        rows, groups, _ = self._rows(theta)
-        return rows.T, groups
+        return self._fit(theta).rows.T, self._groups()
 
-    def _rows(self, theta: np.ndarray) -> tuple[np.ndarray, list[list[int]], list[tuple]]:
-        """The regression columns as rows ``(k, N)`` (each contiguous), the groups of :meth:`columns`, and per
-        mode what its derivatives need: ``(first row, lambda, x1 or None, lambda^k or None, omega, zeta)``."""
-        N = self.y.size
-        n_in = 2 if self.u is not None else 0
-        n_free = 2 if self.initial_state else 0
-        k = self.n * (n_in + n_free) + int(self.feedthrough) + int(self.offset)
-        rows = np.empty((k, N))
-        groups: list[list[int]] = []
-        parts: list[tuple] = []
-        j = 0
-        for i in range(self.n):
-            start = j
-            w = math.exp(theta[2 * i])
-            z = min(max(theta[2 * i + 1], ZETA_MIN), ZETA_MAX)
-            p = complex(-z * w, w * math.sqrt(1.0 - z * z))
-            lam = np.exp(p * self.h)
-            x1 = powers = None
-            if self.u is not None:
-                a = [1.0, -2.0 * lam.real, abs(lam) ** 2]
-                x1 = signal.lfilter([0.0, 1.0], a, self.u)
-                rows[j] = x1
-                rows[j + 1, 0] = 0.0
-                rows[j + 1, 1:] = x1[:-1]
-                j += 2
-            forced = j
-            if self.initial_state:
-                powers = np.exp(p * self.h * self.k)  # lambda^k
-                rows[j] = powers.real
-                rows[j + 1] = powers.imag
-                j += 2
-            # with an input, a mode of the system is one the input drives: a free response alone also fits
-            # a slow drift or coloured noise that has nothing to do with the input (see mode_tests)
-            groups.append(list(range(start, forced)) if self.u is not None else list(range(start, j)))
-            self._free[i] = list(range(forced, j))
-            parts.append((start, lam, x1, powers, w, z))
+    def _rows(self, theta: np.ndarray) -> tuple[np.ndarray, list[tuple]]:
+        """The regression columns as rows ``(k, N)`` (each contiguous) and per mode what its derivatives need: ``(first row, lambda, x1 or None, lambda^k or None, omega, zeta)``."""
+        per = self._per_mode()
+        rows = np.empty((self._width(), self.y.size))
+        th = theta.tolist()
+        parts = [(i * per,) + self._mode_rows(th[2 * i], th[2 * i + 1], rows[i * per: (i + 1) * per])
+                 for i in range(self.n)]
+        j = self.n * per
         if self.feedthrough:
             rows[j] = self.u
             j += 1
         if self.offset:
             rows[j] = 1.0
-        return rows, groups, parts
+        return rows, parts
+
+    def _groups(self) -> list[list[int]]:
+        """Per mode, the indices of the columns that make it a mode of this data (see :meth:`columns`)."""
+        per = self._per_mode()
+        forced = 2 if self.u is not None else 0
+        groups = []
+        for i in range(self.n):
+            start = i * per
+            # with an input, a mode of the system is one the input drives: a free response alone also fits
+            # a slow drift or coloured noise that has nothing to do with the input (see mode_tests)
+            groups.append(list(range(start, start + (forced if forced else per))))
+            self._free[i] = list(range(start + forced, start + per))
+        return groups
+
+    def _mode_rows(self, lw: float, zeta: float, out: np.ndarray) -> tuple:
+        """Fill ``out`` with one mode's rows (the forced response ``x1`` and ``z^-1 x1`` when there is an input,
+        then ``Re, Im lambda^k`` with the initial state); returns ``(lambda, x1, lambda^k, omega, zeta)``."""
+        w = math.exp(lw)
+        z = min(max(zeta, ZETA_MIN), ZETA_MAX)
+        p = complex(-z * w, w * math.sqrt(1.0 - z * z))
+        lam = cmath.exp(p * self.h)
+        x1 = powers = None
+        j = 0
+        if self.u is not None:
+            x1 = _forced(lam, self.u)
+            out[0] = x1
+            out[1, 0] = 0.0
+            out[1, 1:] = x1[:-1]
+            j = 2
+        if self.initial_state:
+            self._free_rows(p, out[j: j + 2])
+            powers = out[j] + 1j * out[j + 1]
+        return lam, x1, powers, w, z
+
+    def _free_rows(self, p: complex, out: np.ndarray) -> None:
+        """``Re, Im lambda^k`` into ``out`` (2, N): ``e^(Re(p) h k) (cos, sin)(Im(p) h k)``, numpy's complex
+        exp in real passes (4x faster)."""
+        mag, ang = np.exp((p.real * self.h) * self.k), (p.imag * self.h) * self.k
+        np.multiply(mag, np.cos(ang), out=out[0])
+        np.multiply(mag, np.sin(ang), out=out[1])
+
+    def term_rows(self, name: str, theta: np.ndarray) -> np.ndarray | None:
+        """The rows the nuisance term ``name`` (feedthrough, offset, initial_state) adds to this model at
+        ``theta``, or None when this model has it already (or cannot: a direct term without an input)."""
+        if name == "feedthrough":
+            return None if self.feedthrough or self.u is None else self.u[None, :]
+        if name == "offset":
+            return None if self.offset else np.ones((1, self.y.size))
+        if self.initial_state:
+            return None
+        out = np.empty((2 * self.n, self.y.size))
+        for i, (_, _, _, _, w, z) in enumerate(self._fit(theta).parts):
+            self._free_rows(complex(-z * w, w * math.sqrt(1.0 - z * z)), out[2 * i: 2 * i + 2])
+        return out
+
+    def _per_mode(self) -> int:
+        return (2 if self.u is not None else 0) + (2 if self.initial_state else 0)
+
+    def _width(self) -> int:
+        """The number of regression columns."""
+        return self.n * self._per_mode() + int(self.feedthrough) + int(self.offset)
 
     def mode_tests(self, theta: np.ndarray, e: np.ndarray, n_lin: int, hac: bool, cells: float) -> list[ModeTest]:
         """Wald test of each mode's coefficients at ``theta`` (see :mod:`.significance`)."""
@@ -165,23 +208,50 @@ class OEModel:
         return fit.residual, fit.coef @ fit.rows, fit.rank
 
     def _fit(self, theta: np.ndarray) -> _Projection:
-        """The projection at ``theta`` (the last one is kept: scipy asks for the residual, then the Jacobian)."""
-        if self._last is not None and np.array_equal(self._last[0], theta):
+        """The projection at ``theta`` (the last one is kept: the search asks for the residual, then the Jacobian)."""
+        key = theta.tobytes()
+        if self._last is not None and self._last[0] == key:
             return self._last[1]
-        rows, _, parts = self._rows(theta)
+        rows, parts = self._rows(theta)
         Rw, yw = (rows, self.y) if self.w is None else (rows * self.w, self.y * self.w)
-        gram = Rw @ Rw.T
-        nrm = np.sqrt(np.diag(gram)).copy()
-        nrm[nrm == 0] = 1.0
-        # projection through the (small) Gram matrix of the unit-norm columns, eigen-truncated for rank
-        # deficiency (a step at k = 0 makes the forced response a combination of offset and free response)
-        lam, V = np.linalg.eigh(gram / np.outer(nrm, nrm))
-        keep = lam > lam[-1] * 1e-13
-        pinv = (V[:, keep] / lam[keep]) @ V[:, keep].T
-        coef = (pinv @ ((Rw @ yw) / nrm)) / nrm  # of the raw columns
-        fit = _Projection(rows, Rw, nrm, pinv, coef, yw - coef @ Rw, int(keep.sum()), parts)
-        self._last = (np.array(theta, dtype=float), fit)
+        fit = _Projection(rows, Rw, *_project(Rw, yw), parts)
+        self._last = (key, fit)
         return fit
+
+    def costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
+        """The residual sum of squares at each of ``thetas`` (as :meth:`residual`, batched: the start's ranking)."""
+        out = np.empty(len(thetas))
+        N = self.y.size
+        yw = self.y if self.w is None else self.y * self.w
+        for lo in range(0, len(thetas), max(1, _BATCH // (N * (self._width() + 1)))):
+            chunk = thetas[lo: lo + max(1, _BATCH // (N * (self._width() + 1)))]
+            X = np.empty((len(chunk),) + (self._width(), N))
+            X[0] = self._rows(chunk[0])[0]
+            a, b = (self.n - 1) * self._per_mode(), self.n * self._per_mode()  # the rows of the last mode
+            first = chunk[0][:-2].tolist()
+            for c, th in enumerate(chunk[1:], 1):
+                th = th.tolist()
+                if th[:-2] != first:
+                    X[c] = self._rows(np.array(th))[0]
+                    continue
+                # the candidates differ in their last mode only: the other rows are the first candidate's
+                if a:
+                    X[c, :a] = X[0, :a]
+                if b < X.shape[1]:
+                    X[c, b:] = X[0, b:]
+                self._mode_rows(th[-2], th[-1], X[c, a:b])
+            if self.w is not None:
+                X *= self.w
+            gram = X @ X.transpose(0, 2, 1)
+            nrm = np.sqrt(np.diagonal(gram, axis1=1, axis2=2))
+            nrm = np.where(nrm == 0, 1.0, nrm)
+            lam, V = np.linalg.eigh(gram / nrm[:, :, None] / nrm[:, None, :])
+            inv = np.where(lam > lam[:, -1:] * 1e-13, 1.0 / np.where(lam > 0, lam, 1.0), 0.0)
+            pinv = (V * inv[:, None, :]) @ V.transpose(0, 2, 1)
+            coef = (pinv @ ((X @ yw) / nrm)[:, :, None])[:, :, 0] / nrm
+            r = yw - (coef[:, None, :] @ X)[:, 0, :]
+            out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
+        return out
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
         return self._fit(theta).residual
@@ -201,21 +271,22 @@ class OEModel:
         Rw, r = fit.weighted, fit.residual
         dphi_c = np.empty((2 * self.n, self.y.size))  # dPhi c, one row per parameter
         g = np.zeros((2 * self.n, Rw.shape[0]))  # dPhi^T r (unit-norm columns), one row per parameter
+        coef, nrm = fit.coef.tolist(), fit.nrm.tolist()
         for i, (start, lam, x1, powers, w, z) in enumerate(fit.parts):
             p = complex(-z * w, w * math.sqrt(1.0 - z * z))
-            zeta_free = ZETA_MIN < theta[2 * i + 1] < ZETA_MAX  # the clip holds zeta still outside the bounds
+            zeta_free = ZETA_MIN < float(theta[2 * i + 1]) < ZETA_MAX  # the clip holds zeta still outside the bounds
             dps = (p, complex(-w, -w * z / math.sqrt(1.0 - z * z)) if zeta_free else 0j)
             col = start
             if x1 is not None:
                 # columns x1 and x2 = z^-1 x1 with d x1 = -(da1 z^-1 + da2 z^-2) / A(z) x1 = -(da1 s1 + da2 z^-1 s1):
                 # one filter for both parameters, and dPhi c, dPhi^T r from shifts of s1
-                s1 = signal.lfilter([0.0, 1.0], [1.0, -2.0 * lam.real, abs(lam) ** 2], x1)
+                s1 = _forced(lam, x1)
                 rw = r if self.w is None else r * self.w
-                c0, c1 = fit.coef[col], fit.coef[col + 1]
+                c0, c1 = coef[col], coef[col + 1]
                 q = c0 * s1
                 q[1:] += c1 * s1[:-1]  # (c0 + c1 z^-1) s1
-                dots = [s1 @ rw, s1[:-1] @ rw[1:], s1[:-2] @ rw[2:]]  # (z^-m s1) . r, m = 0, 1, 2
-                nrm0, nrm1 = fit.nrm[col], fit.nrm[col + 1]
+                dots = [float(s1 @ rw), float(s1[:-1] @ rw[1:]), float(s1[:-2] @ rw[2:])]  # (z^-m s1) . r, m = 0, 1, 2
+                nrm0, nrm1 = nrm[col], nrm[col + 1]
                 for j, dp in enumerate(dps):
                     dlam = lam * self.h * dp
                     da1, da2 = -2.0 * dlam.real, 2.0 * (lam.conjugate() * dlam).real
@@ -258,29 +329,62 @@ class _Projection(NamedTuple):
     parts: list
 
 
+def _project(Rw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Least squares of ``yw`` on the rows ``Rw``: the rows' norms, the pseudo-inverse of the unit-norm rows'
+    Gram matrix, the coefficients (of the raw rows), the residual and the rank."""
+    gram = Rw @ Rw.T
+    nrm = np.sqrt(gram.diagonal())
+    if not nrm.all():
+        nrm = np.where(nrm == 0, 1.0, nrm)
+    pinv, rank = _gram_pinv(gram / np.multiply.outer(nrm, nrm))
+    coef = (pinv @ ((Rw @ yw) / nrm)) / nrm
+    return nrm, pinv, coef, yw - coef @ Rw, rank
+
+
+def _forced(lam: complex, x: np.ndarray) -> np.ndarray:
+    """``z^-1 / A(z) x`` with ``A(z) = (1 - lambda z^-1)(1 - conj(lambda) z^-1)`` (the mode's forced response)."""
+    a = np.array([1.0, -2.0 * lam.real, abs(lam) ** 2])
+    if _linear_filter is not None and x.dtype == np.float64:
+        return _linear_filter(_DELAY, a, x, -1)
+    return signal.lfilter(_DELAY, a, x)
+
+
+def _gram_pinv(gram: np.ndarray) -> tuple[np.ndarray, int]:
+    """Pseudo-inverse and rank of the unit-norm columns' Gram matrix, eigen-truncated at 1e-13 of its largest
+    eigenvalue (a step at k = 0 makes the forced response a combination of offset and free response)."""
+    lam, V, info = lapack.dsyevd(gram)  # numpy's eigh, without its per-call checks (issue #15)
+    if info != 0:
+        lam, V = np.linalg.eigh(gram)
+    if lam[0] > lam[-1] * 1e-13:  # full rank
+        return (V / lam) @ V.T, lam.size
+    keep = lam > lam[-1] * 1e-13
+    return (V[:, keep] / lam[keep]) @ V[:, keep].T, int(keep.sum())
+
+
 def _bounds(n: int, h: float, w_min: float) -> tuple[np.ndarray, np.ndarray]:
     lo = np.tile([math.log(w_min), ZETA_MIN], n)
     hi = np.tile([math.log(0.98 * math.pi / h), ZETA_MAX], n)
     return lo, hi
 
 
-def _least_squares(model: OEModel, theta0: np.ndarray, w_min: float) -> tuple[np.ndarray, optimize.OptimizeResult]:
-    """scipy's trust-region reflective least squares on the projected residual, within :func:`_bounds`.
+def _least_squares(model: OEModel, theta0: np.ndarray, w_min: float) -> tuple[np.ndarray, TRFResult]:
+    """Trust-region reflective least squares on the projected residual, within :func:`_bounds`
+    (:mod:`.trust_region`: scipy's method without its per-call bookkeeping; issue #15).
 
     On a long record the search is first run on its first ``_HEAD`` samples; the fit on the whole
     record then starts from there if that lowers its cost (a few steps instead of about ten; issue #15).
     """
     lo, hi = _bounds(model.n, model.h, w_min)
     x0 = np.clip(theta0, lo + 1e-9, hi - 1e-9)
-    opts = {"bounds": (lo, hi), "method": "trf", "x_scale": "jac", "xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12,
-            "max_nfev": 200 * len(x0)}
+    opts = {"xtol": 1e-10, "ftol": 1e-12, "gtol": 1e-12, "max_nfev": 200 * len(x0)}
     if model.y.size > _LONG_RECORD:
         short = model.head(_HEAD)
-        x1 = np.clip(optimize.least_squares(short.residual, x0, jac=short.jacobian, **opts).x, lo + 1e-9, hi - 1e-9)
+        x1 = np.clip(trust_region_reflective(short.residual, short.jacobian, x0, lo, hi, **opts).x,
+                     lo + 1e-9, hi - 1e-9)
         r0, r1 = model.residual(x0), model.residual(x1)
         if float(r1 @ r1) < float(r0 @ r0):
             x0 = x1
-    res = optimize.least_squares(model.residual, x0, jac=model.jacobian, **opts)
+    res = trust_region_reflective(model.residual, model.jacobian, x0, lo, hi, **opts)
     return res.x, res
 
 
@@ -345,24 +449,22 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
     for j in range(n_modes):
         todo = [(fp, zp) for fp, zp in cands if not any(abs(fp - c[0]) < 0.02 * fp for c in chosen)]
         if short is not None:
-            todo = [c for _, c in sorted(((_cost(short, chosen, c, j), i), c) for i, c in enumerate(todo))]
-            todo = todo[:_SHORTLIST]
+            ranked = _costs(short, chosen, todo, j)
+            todo = [todo[i] for i in sorted(range(len(todo)), key=lambda i: (ranked[i], i))][:_SHORTLIST]
         if not todo:
             raise ValueError(
                 f"n_modes={full_n}: the spectrum has fewer distinct peaks than modes to fit; ask for fewer modes"
             )
-        costs = [_cost(model, chosen, c, j) for c in todo]
+        costs = _costs(model, chosen, todo, j)
         chosen.append(todo[int(np.argmin(costs))])  # the first of equal costs, as a strict < scan
     model.n = full_n
     return np.array([[math.log(2 * math.pi * a), b] for a, b in chosen]).ravel()
 
 
-def _cost(model: OEModel, chosen: list[tuple[float, float]], cand: tuple[float, float], j: int) -> float:
-    """The projected cost of the modes ``chosen`` plus ``cand`` (``j + 1`` modes)."""
+def _costs(model: OEModel, chosen: list[tuple[float, float]], cands: list[tuple[float, float]], j: int) -> np.ndarray:
+    """The projected cost of the modes ``chosen`` plus each of ``cands`` (``j + 1`` modes)."""
     model.n = j + 1
-    th = np.array([[math.log(2 * math.pi * a), b] for a, b in chosen + [cand]]).ravel()
-    r = model.residual(th)
-    return float(r @ r)
+    return model.costs([np.array([[math.log(2 * math.pi * a), b] for a, b in chosen + [c]]).ravel() for c in cands])
 
 
 # ----------------------------------------------------------------------------- the fit
@@ -397,15 +499,17 @@ def _fit_auto_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int
     """
     weights = settings.weights
     base = {name: (False if val == "auto" else bool(val)) for name, val in terms.items()}
-    out, rss, k = _fit_fixed_terms(u, y, fs, n_modes, settings.covariance, base, start=start, method=method,
-                                   weights=weights)
-    th = np.array([[math.log(m.omega), m.zeta] for m in out.modes]).ravel()
+    (out, rss, k), model, th = _fit_fixed(u, y, fs, n_modes, settings.covariance, base, start=start,
+                                          method=method, weights=weights)
     n_lin = k - th.size
+    rows = model.basis(th).T  # the fitted model's columns at its poles; each trial adds its term's
     chosen = dict(base)
     for name in auto:
-        trial = dict(base)
-        trial[name] = True
-        e1, _, n_lin1 = OEModel(u, y, 1.0 / fs, n_modes, weights=weights, **trial).project(th)
+        more = model.term_rows(name, th)
+        if more is None:
+            continue
+        Rw = np.vstack([rows, more])
+        e1, n_lin1 = _project(Rw if weights is None else Rw * weights, y if weights is None else y * weights)[3:]
         extra = n_lin1 - n_lin
         dof = (y.size if weights is None else int(np.count_nonzero(weights))) - k - extra
         if extra <= 0 or dof <= 0:
@@ -424,6 +528,13 @@ def _fit_fixed_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: in
                      terms: dict[str, bool], *, start: Sequence[Mode] | None, method: str,
                      weights: np.ndarray | None) -> OEFit:
     """The fit with each nuisance term on or off: best of three damping scales for one mode, intervals, tests."""
+    return _fit_fixed(u, y, fs, n_modes, covariance, terms, start=start, method=method, weights=weights)[0]
+
+
+def _fit_fixed(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, covariance: str,
+               terms: dict[str, bool], *, start: Sequence[Mode] | None, method: str,
+               weights: np.ndarray | None) -> tuple[OEFit, OEModel, np.ndarray]:
+    """:func:`_fit_fixed_terms`, with its model and the fitted ``(ln omega, zeta)`` (in the model's order)."""
     h = 1.0 / fs
     model = OEModel(u, y, h, n_modes, weights=weights, **terms)
     if start is None:
@@ -452,7 +563,7 @@ def _fit_fixed_terms(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: in
     out = Identification(modes, ivs, method, fit_percent(y, y_hat), pw, used, y_hat, e, fs,
                          tests=[tests[i] for i in order])
     rss = float(e @ e)
-    return OEFit(out, rss, n_lin + th.size)
+    return OEFit(out, rss, n_lin + th.size), model, th
 
 
 @v.renamed_keywords(fs="sample_rate")
@@ -480,7 +591,7 @@ def significant_oe(u: np.ndarray | None, y: np.ndarray, sample_rate: float, n_mo
         n_modes -= 1
 
 
-def _white(res: optimize.OptimizeResult) -> bool:
+def _white(res: TRFResult) -> bool:
     """Accept the first start when its residual looks white (nothing left to explain)."""
     p = whiteness(res.fun)
     return bool(math.isfinite(p) and p > 1e-3)
