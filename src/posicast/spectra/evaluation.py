@@ -34,7 +34,6 @@ class Evaluator:
 
     def __init__(self, q: QuasiPolynomial, budget: int, deadline: float) -> None:
         self.q = q
-        self.dq = q.derivative()
         self.tau = q.delays
         self.tau_max = float(q.delays[-1])
         self.c = q.coeffs
@@ -50,6 +49,23 @@ class Evaluator:
         self.budget = budget
         self.deadline = deadline
         self._taylor_rows: list | None = None  # built on first use (taylor_deriv_bound)
+        # Per-evaluator constants for the small arrays of the boundary walk (issue #15: the Python
+        # overhead of numpy calls dominates there): the columns of c, |c| and the derivative bound's
+        # coefficients as (m, 1) arrays, and -tau as a column; the same operations in the same order
+        # as horner(s, c.T) and exp(-outer(tau, s) + shift), so the same numbers.
+        self._cols = [np.ascontiguousarray(col[:, None]) for col in self.c.T]
+        self._abs_cols = [np.ascontiguousarray(col[:, None]) for col in self.abs_c.T]
+        self._db_cols = [np.ascontiguousarray(col[:, None]) for col in b.T]
+        self._neg_tau = np.ascontiguousarray(-self.tau[:, None])
+        self._rf0 = 8.0 * self.n_terms
+        self._dq: QuasiPolynomial | None = None
+
+    @property
+    def dq(self) -> QuasiPolynomial:
+        """``h'`` (built on first use: most boundary walks never need it)."""
+        if self._dq is None:
+            self._dq = self.q.derivative()
+        return self._dq
 
     def _taylor_data(self) -> list:
         """Per row: the columns of ``pder`` are the coefficients of ``p^{(l)}(s) / l!``, l = 0..d;
@@ -133,15 +149,36 @@ class Evaluator:
         shift = np.minimum(s.real, 0.0) * self.tau_max
         return np.exp(-np.multiply.outer(self.tau, s) + shift)
 
+    @staticmethod
+    def _horner_cols(z: np.ndarray, cols: list) -> np.ndarray:
+        """``horner(z, c.T)`` for a 1-D ``z`` with ``c``'s columns given as (m, 1) arrays: (m, z.size)."""
+        if len(cols) == 1:
+            return cols[0] + z * 0
+        out = cols[-1] * z
+        out += cols[-2]
+        for col in cols[-3::-1]:
+            out *= z
+            out += col
+        return out
+
+    def value_parts(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`value` of a 1-D complex ``z``, with ``|z|`` and the scaling exponent
+        ``min(0, Re z) tau_max`` it used: ``(h rho, sum |terms| rho, |z|, log rho)``."""
+        self.evaluations += z.size
+        if self.evaluations > self.budget or time.monotonic() > self.deadline:
+            self._charge(0)
+        shift = np.minimum(z.real, 0.0) * self.tau_max
+        e = np.exp(self._neg_tau * z + shift)
+        az = np.abs(z)
+        val = np.add.reduce(self._horner_cols(z, self._cols) * e, axis=0)
+        mag = np.add.reduce(self._horner_cols(az, self._abs_cols) * np.abs(e), axis=0)
+        return val, mag, az, shift
+
     def value(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scaled ``h(s) rho(s)`` and the scaled magnitude ``sum |terms| rho(s)``."""
         s = np.asarray(s, dtype=complex)
-        self._charge(s.size)
-        e = self._exps(s)
-        polys = horner(s, self.c.T)
-        val = np.sum(polys * e, axis=0)
-        mag = np.sum(horner(np.abs(s), self.abs_c.T) * np.abs(e), axis=0)
-        return val, mag
+        val, mag, _, _ = self.value_parts(s.reshape(-1))
+        return val.reshape(s.shape), mag.reshape(s.shape)
 
     def newton_step(
         self, s: np.ndarray, q: QuasiPolynomial | None = None, dq: QuasiPolynomial | None = None
@@ -160,10 +197,12 @@ class Evaluator:
 
     def deriv_bound(self, za: np.ndarray, zb: np.ndarray) -> np.ndarray:
         """Bound of ``|h'| rho_seg`` on segments, ``rho_seg = exp(min(0, min Re) tau_max)``."""
-        R = np.maximum(np.abs(za), np.abs(zb))
-        a = np.minimum(za.real, zb.real)
-        e = np.exp(-np.multiply.outer(self.tau, a) + np.minimum(a, 0.0) * self.tau_max)
-        return np.sum(horner(R, self.deriv_bound_coeffs.T) * e, axis=0)
+        return self.deriv_bound_at(np.maximum(np.abs(za), np.abs(zb)), np.minimum(za.real, zb.real))
+
+    def deriv_bound_at(self, R: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """:meth:`deriv_bound` from the segments' largest ``|s|`` (``R``) and smallest ``Re s`` (``a``), 1-D."""
+        e = np.exp(self._neg_tau * a + np.minimum(a, 0.0) * self.tau_max)
+        return np.add.reduce(self._horner_cols(R, self._db_cols) * e, axis=0)
 
 
 def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndarray:
