@@ -16,7 +16,7 @@ import time
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from ..core.quasipoly import QuasiPolynomial, horner
+from ..core.quasipoly import QuasiPolynomial, horner, horner_rows
 from .checks import BudgetExceeded
 
 __all__ = ["EPS", "TWO_PI", "Evaluator", "scaled_eval", "relative_residual"]
@@ -149,18 +149,6 @@ class Evaluator:
         shift = np.minimum(s.real, 0.0) * self.tau_max
         return np.exp(-np.multiply.outer(self.tau, s) + shift)
 
-    @staticmethod
-    def _horner_cols(z: np.ndarray, cols: list) -> np.ndarray:
-        """``horner(z, c.T)`` for a 1-D ``z`` with ``c``'s columns given as (m, 1) arrays: (m, z.size)."""
-        if len(cols) == 1:
-            return cols[0] + z * 0
-        out = cols[-1] * z
-        out += cols[-2]
-        for col in cols[-3::-1]:
-            out *= z
-            out += col
-        return out
-
     def value_parts(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`value` of a 1-D complex ``z``, with ``|z|`` and the scaling exponent
         ``min(0, Re z) tau_max`` it used: ``(h rho, sum |terms| rho, |z|, log rho)``."""
@@ -170,8 +158,8 @@ class Evaluator:
         shift = np.minimum(z.real, 0.0) * self.tau_max
         e = np.exp(self._neg_tau * z + shift)
         az = np.abs(z)
-        val = np.add.reduce(self._horner_cols(z, self._cols) * e, axis=0)
-        mag = np.add.reduce(self._horner_cols(az, self._abs_cols) * np.abs(e), axis=0)
+        val = np.add.reduce(horner_rows(z, self._cols) * e, axis=0)
+        mag = np.add.reduce(horner_rows(az, self._abs_cols) * np.abs(e), axis=0)
         return val, mag, az, shift
 
     def value(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -202,7 +190,7 @@ class Evaluator:
     def deriv_bound_at(self, R: np.ndarray, a: np.ndarray) -> np.ndarray:
         """:meth:`deriv_bound` from the segments' largest ``|s|`` (``R``) and smallest ``Re s`` (``a``), 1-D."""
         e = np.exp(self._neg_tau * a + np.minimum(a, 0.0) * self.tau_max)
-        return np.add.reduce(self._horner_cols(R, self._db_cols) * e, axis=0)
+        return np.add.reduce(horner_rows(R, self._db_cols) * e, axis=0)
 
 
 def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndarray:
