@@ -18,7 +18,7 @@ from numpy.polynomial import polynomial as P
 from .. import _validate as v
 from .verbs import QuasiPolynomialVerbs
 
-__all__ = ["QuasiPolynomial", "horner", "horner_rows"]
+__all__ = ["QuasiPolynomial", "horner", "horner_rows", "times_exps"]
 
 
 def horner(x: object, c: object) -> np.ndarray:
@@ -61,6 +61,18 @@ def horner_rows(z: np.ndarray, cols: Sequence[np.ndarray]) -> np.ndarray:
         out *= z
         out += col
     return out
+
+
+def times_exps(polys: np.ndarray, neg_tau: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``polys * exp(neg_tau * z)`` (rows of ``polys`` times ``exp(-tau_k z)``, ``neg_tau`` a column),
+    in place; an undelayed first row is left as it is (``exp(-0 z)`` is exactly 1: the same numbers
+    without the exponentials of one row)."""
+    if neg_tau[0, 0] == 0.0:
+        if neg_tau.shape[0] > 1:
+            polys[1:] *= np.exp(neg_tau[1:] * z)
+        return polys
+    polys *= np.exp(neg_tau * z)
+    return polys
 
 
 class _Plan(NamedTuple):
@@ -290,7 +302,7 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         plan = self.plan()
         with np.errstate(all="ignore"):
             polys = horner_rows(z, plan.cols)  # (m, z.size)
-            return np.add.reduce(polys * np.exp(plan.neg_tau * z), axis=0).reshape(s_arr.shape)
+            return np.add.reduce(times_exps(polys, plan.neg_tau, z), axis=0).reshape(s_arr.shape)
 
     def plan(self) -> _Plan:
         """The constant arrays of :meth:`_eval` (built once: a quasi-polynomial is immutable)."""

@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .. import _validate as v
-from .quasipoly import QuasiPolynomial, horner_rows
+from .quasipoly import QuasiPolynomial, horner_rows, times_exps
 from .removable import removable_points
 from .verbs import SystemVerbs
 
@@ -194,10 +194,13 @@ class TransferFunction(SystemVerbs):
         if plan.shared:
             with np.errstate(all="ignore"):
                 polys = horner_rows(flat, plan.cols)
-                e = np.exp(plan.neg_tau * flat)
                 m = plan.m
-                N = np.add.reduce(polys[:m] * e, axis=0)
-                D = np.add.reduce(polys[m:] * e, axis=0)
+                if plan.neg_tau.shape[0] > 1 or plan.neg_tau[0, 0] != 0.0:  # (else exp(-0 s) = 1)
+                    polys = polys.reshape(2, m, flat.size)
+                    times_exps(polys.transpose(1, 0, 2), plan.neg_tau[:, :, None], flat)
+                    polys = polys.reshape(2 * m, flat.size)
+                N = np.add.reduce(polys[:m], axis=0)
+                D = np.add.reduce(polys[m:], axis=0)
             if np.isfinite(N).all() and np.isfinite(D).all():
                 return N, D
         return np.atleast_1d(self.num(flat)), np.atleast_1d(self.den(flat))

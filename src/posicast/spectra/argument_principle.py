@@ -40,7 +40,7 @@ def winding(ev: Evaluator, corners: Sequence[complex], step: float, min_len: flo
     be certified down to ``min_len`` (a root on or next to the path).
 
     A segment that fails the test is cut into as many equal pieces as the test
-    asks for (``2 (min |h| - e) / M`` long, at most 16 and at least 2) rather
+    asks for (``2 (min |h| - e) / M`` long) when that is at most 8, rather
     than halved: the same test on every final segment, in fewer rounds.
     """
     pts = []
@@ -100,16 +100,21 @@ def winding(ev: Evaluator, corners: Sequence[complex], step: float, min_len: flo
             i = int(np.argmin(Lb))
             raise OnBoundary(complex(0.5 * (za[i_bad[i]] + zb[i_bad[i]])))
         # pieces the test asks for: 0.5 M l + err < min |h| at the ends needs l < 2 (min |h| - err) / M
-        # (an estimate: the pieces are tested again), between 2 and 16
+        # (an estimate: the pieces are tested again), from 2 to 8; where it asks for more (or for no
+        # length at all: an end at rounding level), |h| is small at an end, next to a root, and
+        # halving keeps the extra points where they are needed
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            want = Lb * M[i_bad] / (2.0 * (hmin[i_bad] - err[i_bad]))
-        want[~(want > 0)] = 16.0
-        seg = seg.cut(i_bad, np.clip(np.ceil(want), 2.0, 16.0).astype(np.intp), ev)
+            want = np.ceil(Lb * M[i_bad] / (2.0 * (hmin[i_bad] - err[i_bad])))
+        want[~(want <= _MAX_PIECES)] = 2.0
+        seg = seg.cut(i_bad, np.maximum(want, 2.0).astype(np.intp), ev)
     w = total / TWO_PI
     k = round(w)
     if abs(w - k) > 1e-6:  # cannot happen when every segment passed; kept as a guard
         raise RootFindingError(f"argument principle gave a non-integer winding {w:.6f}")
     return int(k)
+
+
+_MAX_PIECES = 8.0  # a failing segment is cut into at most this many pieces (else halved)
 
 
 class _Segments(NamedTuple):
