@@ -166,6 +166,15 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         self.coeffs.flags.writeable = False
         self.delays.flags.writeable = False
 
+    def __getstate__(self) -> tuple[None, dict]:
+        # pickled without the evaluation constants (rebuilt on first use; readable by older posicast)
+        return None, {"coeffs": self.coeffs, "delays": self.delays}
+
+    def __setstate__(self, state: tuple[None, dict]) -> None:
+        for name, value in state[1].items():
+            setattr(self, name, value)
+        self._plan = None
+
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_poly(cls, poly_desc: Sequence[float] | np.ndarray, delay: float = 0.0) -> QuasiPolynomial:

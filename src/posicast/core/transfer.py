@@ -104,6 +104,17 @@ class TransferFunction(SystemVerbs):
         self._taylor_cache: dict[complex, tuple] = {}
         self._nd_plan: _NDPlan | None = None
 
+    def __getstate__(self) -> tuple[None, dict]:
+        # pickled without the caches (rebuilt on first use; readable by older posicast)
+        return None, {"num": self.num, "den": self.den}
+
+    def __setstate__(self, state: tuple[None, dict]) -> None:
+        for name, value in state[1].items():
+            setattr(self, name, value)
+        self._expansion_points = None
+        self._taylor_cache = {}
+        self._nd_plan = None
+
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_poly(cls, num_desc: Any, den_desc: Any, delay: float = 0.0) -> TransferFunction:

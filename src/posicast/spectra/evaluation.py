@@ -53,7 +53,7 @@ class Evaluator:
         # overhead of numpy calls dominates there): the columns of c, |c| and the derivative bound's
         # coefficients as (m, 1) arrays, and -tau as a column; the same operations in the same order
         # as horner(s, c.T) and exp(-outer(tau, s) + shift), so the same numbers.
-        self._cols = [np.ascontiguousarray(col[:, None]) for col in self.c.T]
+        self._cols = q.plan().cols
         self._abs_cols = [np.ascontiguousarray(col[:, None]) for col in self.abs_c.T]
         self._db_cols = [np.ascontiguousarray(col[:, None]) for col in b.T]
         self._neg_tau = np.ascontiguousarray(-self.tau[:, None])
@@ -178,8 +178,15 @@ class Evaluator:
             dq = q.derivative()
         self._charge(2 * s.size)
         shift = np.minimum(s.real, 0.0) * self.tau_max
-        f = scaled_eval(q, s, shift)
-        df = scaled_eval(dq, s, shift)
+        if s.ndim == 1 and not q.is_zero and not dq.is_zero and q.delays.shape == dq.delays.shape \
+                and (q.delays == dq.delays).all():
+            # one exponential per delay for both (the same numbers as scaled_eval of each)
+            e = np.exp(q.plan().neg_tau * s + shift)
+            f = np.add.reduce(horner_rows(s, q.plan().cols) * e, axis=0)
+            df = np.add.reduce(horner_rows(s, dq.plan().cols) * e, axis=0)
+        else:
+            f = scaled_eval(q, s, shift)
+            df = scaled_eval(dq, s, shift)
         with np.errstate(divide="ignore", invalid="ignore"):
             return f / df
 
@@ -197,6 +204,9 @@ def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndar
     """``q(s) exp(shift)`` (zero for a zero ``q``), with every exponential scaled by ``exp(shift)``."""
     if q.is_zero:
         return np.zeros(s.shape, dtype=complex)
+    if s.ndim == 1:  # (the same numbers with the quasi-polynomial's constant columns)
+        plan = q.plan()
+        return np.add.reduce(horner_rows(s, plan.cols) * np.exp(plan.neg_tau * s + shift), axis=0)
     e = np.exp(-np.multiply.outer(q.delays, s) + shift)
     return np.sum(horner(s, q.coeffs.T) * e, axis=0)
 

@@ -73,7 +73,7 @@ from .checks import (
 )
 from .disks import certified_radius
 from .evaluation import Evaluator, relative_residual
-from .solver import Solver, inside
+from .solver import Solver
 
 __all__ = [
     "roots",
@@ -222,7 +222,8 @@ def roots(
     solver = Solver(ev, used, step)
     if count:
         _find_all(solver, used, count, step)
-    found = [f for f in solver.found if inside(np.array([f.point]), used)[0]]
+    a, b, c, d = used
+    found = [f for f in solver.found if a <= f.point.real <= b and c <= f.point.imag <= d]
     pts = np.array([f.point for f in found], dtype=complex)
     mult = np.array([f.mult for f in found], dtype=int)
     # real quasi-polynomial: snap numerically real roots onto the axis

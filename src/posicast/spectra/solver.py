@@ -286,7 +286,8 @@ class Solver:
 
     def n_in(self, rect: tuple[float, float, float, float]) -> int:
         """Roots found in ``rect``, with multiplicity."""
-        return sum(f.mult for f in self.found if inside(np.array([f.point]), rect)[0])
+        a, b, c, d = rect
+        return sum(f.mult for f in self.found if a <= f.point.real <= b and c <= f.point.imag <= d)
 
     def search(self, rect: tuple[float, float, float, float], step: float) -> None:
         """Grid candidates in ``rect`` at ``step``, refined by Newton, absorbed and classified."""
