@@ -87,7 +87,27 @@ class Evaluator:
                 E = np.where(kk >= 0, (-float(tau)) ** kp * self._inv_fact[kp], 0.0)
                 rows.append((float(tau), pder, np.abs(pder), E, np.abs(E)))
             self._taylor_rows = rows
+            # every row's pder side by side, column l m + r for p_r^{(l)} / l! (degree <= d - l), as
+            # ((d + 1) m, 1) columns: one triangular Horner pass for all rows (_taylor_horner)
+            both = np.stack([r[1] for r in rows], axis=2).reshape(d + 1, -1)
+            self._taylor_cols = tuple(both[:, :, None])
+            self._taylor_abs_cols = tuple(np.abs(both)[:, :, None])
         return self._taylor_rows
+
+    def _taylor_horner(self, z: np.ndarray, cols: tuple) -> np.ndarray:
+        """``p_r^{(l)}(z) / l!`` for every row ``r`` and ``l``, shape ``(m, d + 1, n)`` (C order).
+
+        Horner's rule on the columns still nonzero: ``p^{(l)}`` has degree ``d - l``, so at the
+        power ``j`` only the columns ``l <= d - j`` (a prefix in this order) have begun; the others
+        are zero, where Horner's rule would multiply zeros.  The same numbers as the full pass.
+        """
+        m, d = len(self.tau), len(cols) - 1
+        out = np.zeros((cols[0].shape[0], z.size), dtype=np.result_type(z, float))
+        for j in range(d, -1, -1):
+            part = out[: (d - j + 1) * m]
+            part *= z
+            part += cols[j][: part.shape[0]]
+        return np.ascontiguousarray(out.reshape(d + 1, m, z.size).transpose(1, 0, 2))
 
     def taylor_deriv_bound(self, c: np.ndarray, rho: np.ndarray, shift: np.ndarray) -> np.ndarray:
         """Bound of ``|h'(s)| exp(shift)`` on the disks ``|s - c| <= rho`` (needs ``rho tau_max <= 1/2``).
@@ -106,19 +126,25 @@ class Evaluator:
         S = np.zeros((K + 1, n))
         tail = np.zeros(n)
         absc = np.abs(c)
-        l = np.arange(rows[0][1].shape[1])[:, None]
+        d1 = rows[0][1].shape[1]
+        l = np.arange(d1)[:, None]
         j0 = K + 1 - l  # the tail: k = l + j > K
-        for tau, pder, apder, E, aE in rows:
-            e0 = np.exp(-c * tau + shift)
-            pl = horner(c, pder) * e0  # (d + 1, n): p^{(l)}(c) / l!, scaled
-            pa = horner(absc, apder) * np.abs(e0)
-            A += E @ pl
+        e0 = np.exp(self._neg_tau * c + shift)  # (m, n)
+        # (m, d + 1, n): p^{(l)}(c) / l! of every row, scaled, and the same with absolute values
+        pl_all = self._taylor_horner(c, self._taylor_cols)
+        pl_all *= e0[:, None, :]
+        pa_all = self._taylor_horner(absc, self._taylor_abs_cols)
+        pa_all *= np.abs(e0)[:, None, :]
+        rho_l = rho[None, :] ** (l - 1)
+        for (tau, _, _, E, aE), pl, pa in zip(rows, pl_all, pa_all):
+            # the real matrix E on the real and imaginary parts side by side (a real product)
+            A += (E @ pl.view(np.float64)).view(complex)
             S += aE @ pa
             if tau > 0:
                 # rho^(l-1) sum_{j >= j0} (l + j) x^j / j!, x = rho tau <= 1/2: ratio <= 2 x / (j0 + 1)
                 x = rho[None, :] * tau
                 t0 = (l + j0) * x**j0 * self._inv_fact[j0]
-                tail += np.sum(pa * rho[None, :] ** (l - 1) * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
+                tail += np.sum(pa * rho_l * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
         k = np.arange(1, K + 1)[:, None]
         err = self.round_factor(absc + rho) * (1.0 + K) * S[1:]
         with np.errstate(over="ignore", invalid="ignore"):  # past the float range: no bound (inf)
