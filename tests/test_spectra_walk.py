@@ -77,3 +77,20 @@ def test_thin_strip_roots_found_without_reconciliation():
     cand = grid_candidates(ev, rect, step)
     for f in solver.found:
         assert np.min(np.abs(cand - f.point)) < 2 * step
+
+
+def test_evaluation_caches_are_not_pickled_and_give_the_same_numbers():
+    """QuasiPolynomial and TransferFunction keep evaluation constants (issue #15); a pickle holds only
+    num/den (coefficients and delays), and the copy evaluates to the same numbers as the closed form."""
+    import pickle
+
+    from posicast import TransferFunction
+
+    H = TransferFunction(ZV, QuasiPolynomial([[100.0, 0.6, 1.0]]))  # ZV / (s^2 + 0.6 s + 100)
+    s = np.array([0.0, 0.3j, 10j, -0.3 + 9.99j, 2.0 - 50j])
+    before = H(s)
+    H2 = pickle.loads(pickle.dumps(H))
+    assert H2._nd_plan is None and H2._taylor_cache == {} and H2.num._plan is None
+    assert np.array_equal(H2(s), before)
+    closed = (0.6 + 0.4 * np.exp(-s * math.pi)) / (s**2 + 0.6 * s + 100.0)
+    np.testing.assert_allclose(before, closed, rtol=1e-14, atol=0)

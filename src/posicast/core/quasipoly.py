@@ -66,7 +66,12 @@ def horner_rows(z: np.ndarray, cols: Sequence[np.ndarray]) -> np.ndarray:
 def times_exps(polys: np.ndarray, neg_tau: np.ndarray, z: np.ndarray) -> np.ndarray:
     """``polys * exp(neg_tau * z)`` (rows of ``polys`` times ``exp(-tau_k z)``, ``neg_tau`` a column),
     in place; an undelayed first row is left as it is (``exp(-0 z)`` is exactly 1: the same numbers
-    without the exponentials of one row)."""
+    without the exponentials of one row).
+
+    >>> times_exps(np.ones((2, 1), dtype=complex), np.array([[0.0], [-np.pi]]), np.array([1j]))
+    array([[ 1.+0.0000000e+00j],
+           [-1.-1.2246468e-16j]])
+    """
     if neg_tau[0, 0] == 0.0:
         if neg_tau.shape[0] > 1:
             polys[1:] *= np.exp(neg_tau[1:] * z)

@@ -56,9 +56,9 @@ def winding(ev: Evaluator, corners: Sequence[complex], step: float, min_len: flo
     small = av <= np.maximum(1e-10, 4.0 * ev.round_factor(az)) * m
     if small.any():  # a sample (numerically) on a root
         raise OnBoundary(complex(z[np.argmax(small)]))
-    # per segment: the end points, their values, magnitudes, |z| and scaling exponents
-    seg = _Segments(z, np.roll(z, -1), v, np.roll(v, -1), av, np.roll(av, -1), m, np.roll(m, -1),
-                    az, np.roll(az, -1), sh, np.roll(sh, -1))
+    # per segment: the end points, their values, |values|, magnitudes, |z| and scaling exponents
+    ca, fa = np.array([z, v]), np.array([av, m, az, sh])
+    seg = _Segments(ca, np.roll(ca, -1, axis=1), fa, np.roll(fa, -1, axis=1))
     total = 0.0
     tau_max = ev.tau_max
     # the Taylor bound (below) for segments that bisection alone would not have settled in 8 rounds
@@ -118,45 +118,51 @@ _MAX_PIECES = 8.0  # a failing segment is cut into at most this many pieces (els
 
 
 class _Segments(NamedTuple):
-    """The segments of a boundary walk not yet certified: end points ``a``, ``b`` and, at each, the
-    scaled value, its modulus, the scaled magnitude, ``|z|`` and the scaling exponent."""
+    """The segments of a boundary walk not yet certified.  At the end points ``a`` and ``b``:
+    ``c*`` holds rows ``z, h rho``; ``f*`` holds rows ``|h rho|``, the scaled magnitude, ``|z|`` and
+    the scaling exponent (few arrays: a walk's rounds are small, numpy calls dominate)."""
 
-    za: np.ndarray
-    zb: np.ndarray
-    va: np.ndarray
-    vb: np.ndarray
-    aa: np.ndarray
-    ab: np.ndarray
-    ma: np.ndarray
-    mb: np.ndarray
-    za_abs: np.ndarray
-    zb_abs: np.ndarray
-    sa: np.ndarray
-    sb: np.ndarray
+    ca: np.ndarray
+    cb: np.ndarray
+    fa: np.ndarray
+    fb: np.ndarray
+
+    za = property(lambda self: self.ca[0])
+    zb = property(lambda self: self.cb[0])
+    va = property(lambda self: self.ca[1])
+    vb = property(lambda self: self.cb[1])
+    aa = property(lambda self: self.fa[0])
+    ab = property(lambda self: self.fb[0])
+    ma = property(lambda self: self.fa[1])
+    mb = property(lambda self: self.fb[1])
+    za_abs = property(lambda self: self.fa[2])
+    zb_abs = property(lambda self: self.fb[2])
+    sa = property(lambda self: self.fa[3])
+    sb = property(lambda self: self.fb[3])
 
     def cut(self, idx: np.ndarray, n: np.ndarray, ev: Evaluator) -> "_Segments":
         """Segments ``idx``, segment ``idx[i]`` cut into ``n[i]`` equal pieces (new points evaluated)."""
-        za, zb = self.za[idx], self.zb[idx]
+        ca, cb, fa, fb = self.ca[:, idx], self.cb[:, idx], self.fa[:, idx], self.fb[:, idx]
+        za, zb = ca[0], cb[0]
         total = int(n.sum())
         owner = np.repeat(np.arange(idx.size), n)
         first = np.cumsum(n) - n  # where each segment's pieces start
+        last = first + n - 1
         j = np.arange(total) - first[owner]
         inner = j > 0
         o = owner[inner]
         zi = za[o] + (zb[o] - za[o]) * (j[inner] / n[o])
         vi, mi, azi, shi = ev.value_parts(zi)
         out = []
-        for a_old, b_old, new in ((za, zb, zi), (self.va[idx], self.vb[idx], vi), (self.aa[idx], self.ab[idx], np.abs(vi)),
-                                  (self.ma[idx], self.mb[idx], mi), (self.za_abs[idx], self.zb_abs[idx], azi),
-                                  (self.sa[idx], self.sb[idx], shi)):
-            a = np.empty(total, dtype=new.dtype)
-            a[first] = a_old
-            a[inner] = new
-            b = np.empty(total, dtype=new.dtype)
-            b[:-1] = a[1:]
-            b[first + n - 1] = b_old
+        for a_old, b_old, new in ((ca, cb, np.array([zi, vi])), (fa, fb, np.array([np.abs(vi), mi, azi, shi]))):
+            a = np.empty((a_old.shape[0], total), dtype=a_old.dtype)
+            a[:, first] = a_old
+            a[:, inner] = new
+            b = np.empty_like(a)
+            b[:, :-1] = a[:, 1:]
+            b[:, last] = b_old
             out += [a, b]
-        return _Segments(*out)
+        return _Segments(out[0], out[1], out[2], out[3])
 
 
 def rect_corners(r: tuple[float, float, float, float]) -> list[complex]:
