@@ -47,7 +47,8 @@ def horner_rows(z: np.ndarray, cols: Sequence[np.ndarray]) -> np.ndarray:
     """``horner(z, c.T)`` for a 1-D ``z``, with the columns of ``c`` given as ``(m, 1)`` arrays
     (ascending powers): the ``m`` polynomials at ``z``, shape ``(m, z.size)``.
 
-    The same operations in the same order as :func:`horner`, so the same numbers, with fewer
+    The same operations in the same order as :func:`horner` (equal to rounding: numpy's complex
+    product may round differently by memory layout, as between one point and many), with fewer
     numpy calls: the evaluators that call it many times on small arrays keep the columns.
 
     >>> horner_rows(np.array([1.0, 2.0]), [np.array([[1.0]]), np.array([[0.0]]), np.array([[3.0]])])
@@ -65,8 +66,8 @@ def horner_rows(z: np.ndarray, cols: Sequence[np.ndarray]) -> np.ndarray:
 
 def times_exps(polys: np.ndarray, neg_tau: np.ndarray, z: np.ndarray) -> np.ndarray:
     """``polys * exp(neg_tau * z)`` (rows of ``polys`` times ``exp(-tau_k z)``, ``neg_tau`` a column),
-    in place; an undelayed first row is left as it is (``exp(-0 z)`` is exactly 1: the same numbers
-    without the exponentials of one row).
+    in place; an undelayed first row is left as it is (``exp(-0 z)`` is exactly 1: the exponentials
+    of one row saved).
 
     >>> times_exps(np.ones((2, 1), dtype=complex), np.array([[0.0], [-np.pi]]), np.array([1j]))
     array([[ 1.+0.0000000e+00j],

@@ -190,7 +190,7 @@ class TransferFunction(SystemVerbs):
             n, d = self.num, self.den
             # one Horner pass over num's and den's rows stacked, and one exponential per delay, where
             # they share their delays and degree (a loop's sensitivities): the same operations on the
-            # same numbers as evaluating each, with half the numpy calls
+            # operations as evaluating each (equal to rounding), with half the numpy calls
             shared = (not n.is_zero and n.coeffs.shape == d.coeffs.shape and np.array_equal(n.delays, d.delays))
             cols = tuple(np.concatenate([a, b]) for a, b in zip(n.plan().cols, d.plan().cols)) if shared else ()
             tau = self.max_delay

@@ -52,7 +52,7 @@ class Evaluator:
         # Per-evaluator constants for the small arrays of the boundary walk (issue #15: the Python
         # overhead of numpy calls dominates there): the columns of c, |c| and the derivative bound's
         # coefficients as (m, 1) arrays, and -tau as a column; the same operations in the same order
-        # as horner(s, c.T) and exp(-outer(tau, s) + shift), so the same numbers.
+        # as horner(s, c.T) and exp(-outer(tau, s) + shift) (equal to rounding).
         self._cols = q.plan().cols
         self._abs_cols = [np.ascontiguousarray(col[:, None]) for col in self.abs_c.T]
         self._db_cols = [np.ascontiguousarray(col[:, None]) for col in b.T]
@@ -99,7 +99,7 @@ class Evaluator:
 
         Horner's rule on the columns still nonzero: ``p^{(l)}`` has degree ``d - l``, so at the
         power ``j`` only the columns ``l <= d - j`` (a prefix in this order) have begun; the others
-        are zero, where Horner's rule would multiply zeros.  The same numbers as the full pass.
+        are zero, where Horner's rule would multiply zeros.  The same values as the full pass.
         """
         m, d = len(self.tau), len(cols) - 1
         out = np.zeros((cols[0].shape[0], z.size), dtype=np.result_type(z, float))
@@ -206,7 +206,7 @@ class Evaluator:
         shift = np.minimum(s.real, 0.0) * self.tau_max
         if s.ndim == 1 and not q.is_zero and not dq.is_zero and q.delays.shape == dq.delays.shape \
                 and (q.delays == dq.delays).all():
-            # one exponential per delay for both (the same numbers as scaled_eval of each)
+            # one exponential per delay for both (the same operations as scaled_eval of each)
             e = np.exp(q.plan().neg_tau * s + shift)
             f = np.add.reduce(horner_rows(s, q.plan().cols) * e, axis=0)
             df = np.add.reduce(horner_rows(s, dq.plan().cols) * e, axis=0)
@@ -230,7 +230,7 @@ def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndar
     """``q(s) exp(shift)`` (zero for a zero ``q``), with every exponential scaled by ``exp(shift)``."""
     if q.is_zero:
         return np.zeros(s.shape, dtype=complex)
-    if s.ndim == 1:  # (the same numbers with the quasi-polynomial's constant columns)
+    if s.ndim == 1:  # (the same operations with the quasi-polynomial's constant columns)
         plan = q.plan()
         return np.add.reduce(horner_rows(s, plan.cols) * np.exp(plan.neg_tau * s + shift), axis=0)
     e = np.exp(-np.multiply.outer(q.delays, s) + shift)
