@@ -94,3 +94,12 @@ def test_evaluation_caches_are_not_pickled_and_give_the_same_numbers():
     assert np.array_equal(H2(s), before)
     closed = (0.6 + 0.4 * np.exp(-s * math.pi)) / (s**2 + 0.6 * s + 100.0)
     np.testing.assert_allclose(before, closed, rtol=1e-14, atol=0)
+
+
+def test_roots_on_one_vertical_line_come_in_increasing_imaginary_order():
+    """The ZV zeros ZV_RE + j (2k + 1) share their real part (to rounding): they are listed by Im s,
+    not by the sign of each one's rounding error in Re s."""
+    from posicast import roots
+
+    r = roots(ZV, (-2.0, 2.0, 0.0, 100.0))
+    np.testing.assert_allclose(r.roots, ZV_RE + 1j * np.arange(1, 100, 2), rtol=0, atol=1e-9)
