@@ -57,7 +57,6 @@ class Evaluator:
         self._abs_cols = [np.ascontiguousarray(col[:, None]) for col in self.abs_c.T]
         self._db_cols = [np.ascontiguousarray(col[:, None]) for col in b.T]
         self._neg_tau = np.ascontiguousarray(-self.tau[:, None])
-        self._rf0 = 8.0 * self.n_terms
         self._dq: QuasiPolynomial | None = None
 
     @property
@@ -169,11 +168,6 @@ class Evaluator:
             )
         if time.monotonic() > self.deadline:
             raise BudgetExceeded("root finding exceeded its time budget (timeout); shrink the region or raise timeout")
-
-    def _exps(self, s: np.ndarray) -> np.ndarray:
-        # exp(-s tau_k) * rho(s) with rho(s) = exp(min(0, Re s) tau_max): every factor has modulus <= 1
-        shift = np.minimum(s.real, 0.0) * self.tau_max
-        return np.exp(-np.multiply.outer(self.tau, s) + shift)
 
     def value_parts(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`value` of a 1-D complex ``z``, with ``|z|`` and the scaling exponent
