@@ -303,7 +303,7 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         """
         s_arr = v.complex_array(s, "s")
         out = self._eval(s_arr)
-        if not np.all(np.isfinite(out)):
+        if not np.isfinite(out).all():
             bad = complex(s_arr.reshape(-1)[int(np.flatnonzero(~np.isfinite(np.reshape(out, -1)))[0])])
             raise ValueError(f"s = {bad:.6g}: the value overflows the float range (|s| or -Re s too large "
                              f"for the powers and delays of {self})")
