@@ -10,7 +10,7 @@ exact: products add delays and multiply polynomials, nothing is approximated.
 from __future__ import annotations
 
 from math import factorial
-from typing import Iterable, Sequence
+from typing import Iterable, NamedTuple, Sequence
 
 import numpy as np
 from numpy.polynomial import polynomial as P
@@ -18,7 +18,7 @@ from numpy.polynomial import polynomial as P
 from .. import _validate as v
 from .verbs import QuasiPolynomialVerbs
 
-__all__ = ["QuasiPolynomial", "horner"]
+__all__ = ["QuasiPolynomial", "horner", "horner_rows", "times_exps"]
 
 
 def horner(x: object, c: object) -> np.ndarray:
@@ -42,6 +42,51 @@ def horner(x: object, c: object) -> np.ndarray:
         out *= x
         out += c[-i]
     return out
+
+def horner_rows(z: np.ndarray, cols: Sequence[np.ndarray]) -> np.ndarray:
+    """``horner(z, c.T)`` for a 1-D ``z``, with the columns of ``c`` given as ``(m, 1)`` arrays
+    (ascending powers): the ``m`` polynomials at ``z``, shape ``(m, z.size)``.
+
+    The same operations in the same order as :func:`horner` (equal to rounding: numpy's complex
+    product may round differently by memory layout, as between one point and many), with fewer
+    numpy calls: the evaluators that call it many times on small arrays keep the columns.
+
+    >>> horner_rows(np.array([1.0, 2.0]), [np.array([[1.0]]), np.array([[0.0]]), np.array([[3.0]])])
+    array([[ 4., 13.]])
+    """
+    if len(cols) == 1:
+        return cols[0] + z * 0
+    out = cols[-1] * z
+    out += cols[-2]
+    for col in cols[-3::-1]:
+        out *= z
+        out += col
+    return out
+
+
+def times_exps(polys: np.ndarray, neg_tau: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``polys * exp(neg_tau * z)`` (rows of ``polys`` times ``exp(-tau_k z)``, ``neg_tau`` a column),
+    in place; an undelayed first row is left as it is (``exp(-0 z)`` is exactly 1: the exponentials
+    of one row saved).
+
+    >>> times_exps(np.ones((2, 1), dtype=complex), np.array([[0.0], [-np.pi]]), np.array([1j]))
+    array([[ 1.+0.0000000e+00j],
+           [-1.-1.2246468e-16j]])
+    """
+    if neg_tau[0, 0] == 0.0:
+        if neg_tau.shape[0] > 1:
+            polys[1:] *= np.exp(neg_tau[1:] * z)
+        return polys
+    polys *= np.exp(neg_tau * z)
+    return polys
+
+
+class _Plan(NamedTuple):
+    """Per-quasi-polynomial constants of evaluation: coefficient columns ``(m, 1)`` and ``-delays``."""
+
+    cols: tuple
+    neg_tau: np.ndarray
+
 
 # Two delays closer than this (relative to the largest) are the same delay.
 _DELAY_RTOL = 1e-12
@@ -101,7 +146,7 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
     True
     """
 
-    __slots__ = ("coeffs", "delays")
+    __slots__ = ("coeffs", "delays", "_plan")
 
     coeffs: np.ndarray
     delays: np.ndarray
@@ -123,8 +168,18 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         c, d = _canonical(c, d)
         self.coeffs = c
         self.delays = d
+        self._plan: _Plan | None = None
         self.coeffs.flags.writeable = False
         self.delays.flags.writeable = False
+
+    def __getstate__(self) -> tuple[None, dict]:
+        # pickled without the evaluation constants (rebuilt on first use; readable by older posicast)
+        return None, {"coeffs": self.coeffs, "delays": self.delays}
+
+    def __setstate__(self, state: tuple[None, dict]) -> None:
+        for name, value in state[1].items():
+            setattr(self, name, value)
+        self._plan = None
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -248,7 +303,7 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         """
         s_arr = v.complex_array(s, "s")
         out = self._eval(s_arr)
-        if not np.all(np.isfinite(out)):
+        if not np.isfinite(out).all():
             bad = complex(s_arr.reshape(-1)[int(np.flatnonzero(~np.isfinite(np.reshape(out, -1)))[0])])
             raise ValueError(f"s = {bad:.6g}: the value overflows the float range (|s| or -Re s too large "
                              f"for the powers and delays of {self})")
@@ -258,10 +313,18 @@ class QuasiPolynomial(QuasiPolynomialVerbs):
         """Raw evaluation at a complex array (no checks; overflow gives inf/NaN, without warnings)."""
         if self.is_zero:
             return np.zeros_like(s_arr)
+        z = s_arr.reshape(-1)
+        plan = self.plan()
         with np.errstate(all="ignore"):
-            polys = horner(s_arr, self.coeffs.T)  # shape (m,) + s.shape
-            exps = np.exp(-np.multiply.outer(self.delays, s_arr))
-            return np.sum(polys * exps, axis=0)
+            polys = horner_rows(z, plan.cols)  # (m, z.size)
+            return np.add.reduce(times_exps(polys, plan.neg_tau, z), axis=0).reshape(s_arr.shape)
+
+    def plan(self) -> _Plan:
+        """The constant arrays of :meth:`_eval` (built once: a quasi-polynomial is immutable)."""
+        if getattr(self, "_plan", None) is None:  # (None also for an instance unpickled from an older posicast)
+            self._plan = _Plan(tuple(np.ascontiguousarray(col[:, None]) for col in self.coeffs.T),
+                               np.ascontiguousarray(-self.delays[:, None]))
+        return self._plan
 
     def magnitude_scale(self, s: object) -> np.ndarray:
         """``sum_i |p_i(s)| |exp(-s tau_i)|`` summed term by term (absolute values).

@@ -15,12 +15,12 @@ elsewhere the ratio of the first nonvanishing derivatives is used (l'Hôpital).
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .. import _validate as v
-from .quasipoly import QuasiPolynomial, horner
+from .quasipoly import QuasiPolynomial, horner_rows, times_exps
 from .removable import removable_points
 from .verbs import SystemVerbs
 
@@ -88,7 +88,7 @@ class TransferFunction(SystemVerbs):
     (1+0j)
     """
 
-    __slots__ = ("num", "den", "_expansion_points", "_taylor_cache")
+    __slots__ = ("num", "den", "_expansion_points", "_taylor_cache", "_nd_plan")
 
     num: QuasiPolynomial
     den: QuasiPolynomial
@@ -101,7 +101,19 @@ class TransferFunction(SystemVerbs):
         self.num = num
         self.den = den
         self._expansion_points: np.ndarray | None = None
-        self._taylor_cache: dict[complex, tuple[np.ndarray, ...]] = {}
+        self._taylor_cache: dict[complex, tuple] = {}
+        self._nd_plan: _NDPlan | None = None
+
+    def __getstate__(self) -> tuple[None, dict]:
+        # pickled without the caches (rebuilt on first use; readable by older posicast)
+        return None, {"num": self.num, "den": self.den}
+
+    def __setstate__(self, state: tuple[None, dict]) -> None:
+        for name, value in state[1].items():
+            setattr(self, name, value)
+        self._expansion_points = None
+        self._taylor_cache = {}
+        self._nd_plan = None
 
     # ------------------------------------------------------------------ constructors
     @classmethod
@@ -171,6 +183,39 @@ class TransferFunction(SystemVerbs):
             self._expansion_points = np.array(pts, dtype=complex)
         return self._expansion_points
 
+    def _plan(self) -> _NDPlan:
+        """Constants of :meth:`__call__`, built once (num and den are immutable)."""
+        plan = getattr(self, "_nd_plan", None)  # (None also for an instance unpickled from an older posicast)
+        if plan is None:
+            n, d = self.num, self.den
+            # one Horner pass over num's and den's rows stacked, and one exponential per delay, where
+            # they share their delays and degree (a loop's sensitivities): the same operations on the
+            # operations as evaluating each (equal to rounding), with half the numpy calls
+            shared = (not n.is_zero and n.coeffs.shape == d.coeffs.shape and np.array_equal(n.delays, d.delays))
+            cols = tuple(np.concatenate([a, b]) for a, b in zip(n.plan().cols, d.plan().cols)) if shared else ()
+            tau = self.max_delay
+            # the 24-term series is exact to rounding for |h| tau <= 0.5 (see __call__)
+            near = tuple((complex(s0), 0.5 / max(tau, 1.0 / (1.0 + abs(s0)))) for s0 in self._points())
+            plan = self._nd_plan = _NDPlan(shared, cols, d.plan().neg_tau, n.coeffs.shape[0], near)
+        return plan
+
+    def _num_den(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``N(s)`` and ``D(s)`` at a 1-D complex ``flat`` (ValueError naming ``s`` past the float range)."""
+        plan = self._plan()
+        if plan.shared:
+            with np.errstate(all="ignore"):
+                polys = horner_rows(flat, plan.cols)
+                m = plan.m
+                if plan.neg_tau.shape[0] > 1 or plan.neg_tau[0, 0] != 0.0:  # (else exp(-0 s) = 1)
+                    polys = polys.reshape(2, m, flat.size)
+                    times_exps(polys.transpose(1, 0, 2), plan.neg_tau[:, :, None], flat)
+                    polys = polys.reshape(2 * m, flat.size)
+                N = np.add.reduce(polys[:m], axis=0)
+                D = np.add.reduce(polys[m:], axis=0)
+            if np.isfinite(N).all() and np.isfinite(D).all():
+                return N, D
+        return np.atleast_1d(self.num(flat)), np.atleast_1d(self.den(flat))
+
     def __call__(self, s: Any) -> Any:
         """Evaluate ``H(s)`` at complex ``s`` (scalar or array).  Poles give ``inf``.
 
@@ -179,26 +224,23 @@ class TransferFunction(SystemVerbs):
         """
         s_arr = finite_complex(s)
         flat = s_arr.reshape(-1)
-        N = np.atleast_1d(self.num(flat))
-        D = np.atleast_1d(self.den(flat))
+        N, D = self._num_den(flat)
         with np.errstate(divide="ignore", invalid="ignore"):
             out = N / D
         # Taylor expansion near 0 and near removable roots of a polynomial denominator.
-        tau = self.max_delay
-        for s0 in self._points():
-            # The 24-term series is exact to rounding for |h| tau <= 0.5; direct evaluation
-            # of a cancelling N/D loses ~eps/|h tau|^k there, so the series is used.
-            radius = 0.5 / max(tau, 1.0 / (1.0 + abs(s0)))
+        # The 24-term series is exact to rounding for |h| tau <= 0.5; direct evaluation
+        # of a cancelling N/D loses ~eps/|h tau|^k there, so the series is used.
+        for s0, radius in self._plan().near:
             near = np.abs(flat - s0) <= radius
-            if np.any(near):
+            if near.any():
                 out[near] = self._taylor_ratio(s0, flat[near] - s0)
         # Remaining 0/0 points: l'Hopital with exact derivatives.
         bad = ~np.isfinite(out)
-        if np.any(bad):
+        if bad.any():
             for idx in np.flatnonzero(bad):
                 out[idx] = self._limit_at(flat[idx])
         out = out.reshape(s_arr.shape)
-        if np.any(np.isnan(out)):  # no finite limit found where N and D both overflowed
+        if np.isnan(out).any():  # no finite limit found where N and D both overflowed
             bad = complex(s_arr.reshape(-1)[int(np.flatnonzero(np.isnan(out.reshape(-1)))[0])])
             raise ValueError(f"s = {bad:.6g}: H(s) is outside the float range there")
         return out if s_arr.ndim else complex(out)
@@ -206,21 +248,14 @@ class TransferFunction(SystemVerbs):
     def _taylor_ratio(self, s0: complex, h: np.ndarray) -> np.ndarray:
         key = complex(s0)
         if key not in self._taylor_cache:  # the coefficients depend on s0 only
-            self._taylor_cache[key] = self.num.taylor(s0, _TAYLOR_ORDER) + self.den.taylor(s0, _TAYLOR_ORDER)
-        cn, sn, cd, sd = self._taylor_cache[key]
-        cn = np.where(np.abs(cn) <= _CANCEL_RTOL * sn, 0.0, cn)
-        cd = np.where(np.abs(cd) <= _CANCEL_RTOL * sd, 0.0, cd)
-        kn = np.flatnonzero(cn)
-        kd = np.flatnonzero(cd)
-        if kd.size == 0:  # denominator vanishes to high order: treat as a pole
+            self._taylor_cache[key] = _ratio_series(self.num.taylor(s0, _TAYLOR_ORDER)
+                                                    + self.den.taylor(s0, _TAYLOR_ORDER))
+        cols = self._taylor_cache[key]
+        if cols is None:  # denominator vanishes to high order: treat as a pole
             return np.full(h.shape, complex(np.inf))
-        k0 = min(kd[0], kn[0]) if kn.size else kd[0]
-        cn = cn[k0:]
-        cd = cd[k0:]
-        num = horner(h, cn)
-        den = horner(h, cd)
+        nd = horner_rows(h, cols)  # the two series, num's and den's, in one pass
         with np.errstate(divide="ignore", invalid="ignore"):
-            out = num / den
+            out = nd[0] / nd[1]
         out[~np.isfinite(out)] = complex(np.inf)
         return out
 
@@ -392,6 +427,33 @@ class TransferFunction(SystemVerbs):
             )
         n = num.coeffs[0][::-1] if not num.is_zero else np.zeros(1)
         return n, den.coeffs[0][::-1]
+
+
+class _NDPlan(NamedTuple):
+    """:meth:`TransferFunction.__call__`'s constants: whether num and den share delays and degree
+    (then ``cols``, their stacked coefficient columns, ``neg_tau`` and num's row count ``m``), and
+    the Taylor expansion points with their radii."""
+
+    shared: bool
+    cols: tuple
+    neg_tau: np.ndarray
+    m: int
+    near: tuple
+
+
+def _ratio_series(taylor: tuple) -> tuple | None:
+    """The series of num and den about a point as (2, 1) coefficient columns, both from the lowest
+    power where either is nonzero (a coefficient below ``_CANCEL_RTOL`` of its scale is zero);
+    None when den's series vanishes (a pole)."""
+    cn, sn, cd, sd = taylor
+    cn = np.where(np.abs(cn) <= _CANCEL_RTOL * sn, 0.0, cn)
+    cd = np.where(np.abs(cd) <= _CANCEL_RTOL * sd, 0.0, cd)
+    kn = np.flatnonzero(cn)
+    kd = np.flatnonzero(cd)
+    if kd.size == 0:
+        return None
+    k0 = min(kd[0], kn[0]) if kn.size else kd[0]
+    return tuple(np.array([[a], [b]]) for a, b in zip(cn[k0:], cd[k0:]))
 
 
 def delay(tau: float) -> TransferFunction:

@@ -74,7 +74,19 @@ def grid_candidates(ev: Evaluator, rect: tuple[float, float, float, float], step
     centers = 0.5 * (x[ix] + x[ix + 1]) + 0.5j * (y[iy] + y[iy + 1])
     # zero samples (a root exactly on a grid node) are candidates too
     zy, zx = np.nonzero(H == 0)
-    return np.concatenate([centers, S[zy, zx]])
+    # and the nodes where |h| is below its four neighbours: h rho is analytic times a factor of modulus
+    # 1 (rho = exp(min(0, Re s) tau_max)), so |h rho| has local minima only at roots, and a node's
+    # discrete minimum is next to one.  The cells' winding misses roots where the cells are long
+    # against their distance to the root (a thin strip right of a root chain: 0.25 x 8 cells); the
+    # minima catch them without the splits of reconciliation (issue #15).  Square cells need them not.
+    dx, dy = (b - a) / (nx - 1), (d - c) / (ny - 1)
+    if not max(dx, dy) > 2.0 * min(dx, dy):
+        return np.concatenate([centers, S[zy, zx]])
+    A = np.abs(H)
+    P = np.pad(A, 1, constant_values=np.inf)
+    lm = (A < P[:-2, 1:-1]) & (A < P[2:, 1:-1]) & (A < P[1:-1, :-2]) & (A < P[1:-1, 2:])
+    my, mx = np.nonzero(lm)
+    return np.concatenate([centers, S[zy, zx], S[my, mx]])
 
 
 def newton(

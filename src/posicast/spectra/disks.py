@@ -87,14 +87,18 @@ def pellet(q: QuasiPolynomial, c: complex, rho_max: float, order: int = 16) -> P
     a, err, absa, B = _taylor_and_tail(q, c, order, R0)
     k = np.arange(order + 1)
     certified: list[tuple[float, int]] = []
-    for j in range(39, -1, -1):
-        rho = rho_max * 10.0 ** (-j / 4.0)
+    rhos = [rho_max * 10.0 ** (-j / 4.0) for j in range(39, -1, -1)]
+    # every radius's terms at once (row i: the same numbers as rho_i**k), the scalar rest per radius
+    powers = np.array(rhos)[:, None] ** k
+    terms = (absa + err) * powers
+    dominant = np.argmax(absa * powers, axis=1)
+    sums = np.sum(terms, axis=1)
+    for i, rho in enumerate(rhos):
         x = rho / R0
         tail = B * x ** (order + 1) / (1.0 - x)
-        terms = (absa + err) * rho**k
-        m = int(np.argmax(absa * rho**k))
+        m = int(dominant[i])
         lhs = (absa[m] - err[m]) * rho**m
-        rhs = float(np.sum(terms) - terms[m]) + tail
+        rhs = float(sums[i] - terms[i, m]) + tail
         if lhs > rhs:
             certified.append((rho, m))
     if not certified:

@@ -16,7 +16,7 @@ import time
 import numpy as np
 from numpy.polynomial import polynomial as P
 
-from ..core.quasipoly import QuasiPolynomial, horner
+from ..core.quasipoly import QuasiPolynomial, horner, horner_rows
 from .checks import BudgetExceeded
 
 __all__ = ["EPS", "TWO_PI", "Evaluator", "scaled_eval", "relative_residual"]
@@ -34,7 +34,6 @@ class Evaluator:
 
     def __init__(self, q: QuasiPolynomial, budget: int, deadline: float) -> None:
         self.q = q
-        self.dq = q.derivative()
         self.tau = q.delays
         self.tau_max = float(q.delays[-1])
         self.c = q.coeffs
@@ -50,6 +49,22 @@ class Evaluator:
         self.budget = budget
         self.deadline = deadline
         self._taylor_rows: list | None = None  # built on first use (taylor_deriv_bound)
+        # Per-evaluator constants for the small arrays of the boundary walk (issue #15: the Python
+        # overhead of numpy calls dominates there): the columns of c, |c| and the derivative bound's
+        # coefficients as (m, 1) arrays, and -tau as a column; the same operations in the same order
+        # as horner(s, c.T) and exp(-outer(tau, s) + shift) (equal to rounding).
+        self._cols = q.plan().cols
+        self._abs_cols = [np.ascontiguousarray(col[:, None]) for col in self.abs_c.T]
+        self._db_cols = [np.ascontiguousarray(col[:, None]) for col in b.T]
+        self._neg_tau = np.ascontiguousarray(-self.tau[:, None])
+        self._dq: QuasiPolynomial | None = None
+
+    @property
+    def dq(self) -> QuasiPolynomial:
+        """``h'`` (built on first use: most boundary walks never need it)."""
+        if self._dq is None:
+            self._dq = self.q.derivative()
+        return self._dq
 
     def _taylor_data(self) -> list:
         """Per row: the columns of ``pder`` are the coefficients of ``p^{(l)}(s) / l!``, l = 0..d;
@@ -71,7 +86,27 @@ class Evaluator:
                 E = np.where(kk >= 0, (-float(tau)) ** kp * self._inv_fact[kp], 0.0)
                 rows.append((float(tau), pder, np.abs(pder), E, np.abs(E)))
             self._taylor_rows = rows
+            # every row's pder side by side, column l m + r for p_r^{(l)} / l! (degree <= d - l), as
+            # ((d + 1) m, 1) columns: one triangular Horner pass for all rows (_taylor_horner)
+            both = np.stack([r[1] for r in rows], axis=2).reshape(d + 1, -1)
+            self._taylor_cols = tuple(both[:, :, None])
+            self._taylor_abs_cols = tuple(np.abs(both)[:, :, None])
         return self._taylor_rows
+
+    def _taylor_horner(self, z: np.ndarray, cols: tuple) -> np.ndarray:
+        """``p_r^{(l)}(z) / l!`` for every row ``r`` and ``l``, shape ``(m, d + 1, n)`` (C order).
+
+        Horner's rule on the columns still nonzero: ``p^{(l)}`` has degree ``d - l``, so at the
+        power ``j`` only the columns ``l <= d - j`` (a prefix in this order) have begun; the others
+        are zero, where Horner's rule would multiply zeros.  The same values as the full pass.
+        """
+        m, d = len(self.tau), len(cols) - 1
+        out = np.zeros((cols[0].shape[0], z.size), dtype=np.result_type(z, float))
+        for j in range(d, -1, -1):
+            part = out[: (d - j + 1) * m]
+            part *= z
+            part += cols[j][: part.shape[0]]
+        return np.ascontiguousarray(out.reshape(d + 1, m, z.size).transpose(1, 0, 2))
 
     def taylor_deriv_bound(self, c: np.ndarray, rho: np.ndarray, shift: np.ndarray) -> np.ndarray:
         """Bound of ``|h'(s)| exp(shift)`` on the disks ``|s - c| <= rho`` (needs ``rho tau_max <= 1/2``).
@@ -90,19 +125,25 @@ class Evaluator:
         S = np.zeros((K + 1, n))
         tail = np.zeros(n)
         absc = np.abs(c)
-        l = np.arange(rows[0][1].shape[1])[:, None]
+        d1 = rows[0][1].shape[1]
+        l = np.arange(d1)[:, None]
         j0 = K + 1 - l  # the tail: k = l + j > K
-        for tau, pder, apder, E, aE in rows:
-            e0 = np.exp(-c * tau + shift)
-            pl = horner(c, pder) * e0  # (d + 1, n): p^{(l)}(c) / l!, scaled
-            pa = horner(absc, apder) * np.abs(e0)
-            A += E @ pl
+        e0 = np.exp(self._neg_tau * c + shift)  # (m, n)
+        # (m, d + 1, n): p^{(l)}(c) / l! of every row, scaled, and the same with absolute values
+        pl_all = self._taylor_horner(c, self._taylor_cols)
+        pl_all *= e0[:, None, :]
+        pa_all = self._taylor_horner(absc, self._taylor_abs_cols)
+        pa_all *= np.abs(e0)[:, None, :]
+        rho_l = rho[None, :] ** (l - 1)
+        for (tau, _, _, E, aE), pl, pa in zip(rows, pl_all, pa_all):
+            # the real matrix E on the real and imaginary parts side by side (a real product)
+            A += (E @ pl.view(np.float64)).view(complex)
             S += aE @ pa
             if tau > 0:
                 # rho^(l-1) sum_{j >= j0} (l + j) x^j / j!, x = rho tau <= 1/2: ratio <= 2 x / (j0 + 1)
                 x = rho[None, :] * tau
                 t0 = (l + j0) * x**j0 * self._inv_fact[j0]
-                tail += np.sum(pa * rho[None, :] ** (l - 1) * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
+                tail += np.sum(pa * rho_l * t0 / (1.0 - 2.0 * x / (j0 + 1)), axis=0)
         k = np.arange(1, K + 1)[:, None]
         err = self.round_factor(absc + rho) * (1.0 + K) * S[1:]
         with np.errstate(over="ignore", invalid="ignore"):  # past the float range: no bound (inf)
@@ -128,20 +169,24 @@ class Evaluator:
         if time.monotonic() > self.deadline:
             raise BudgetExceeded("root finding exceeded its time budget (timeout); shrink the region or raise timeout")
 
-    def _exps(self, s: np.ndarray) -> np.ndarray:
-        # exp(-s tau_k) * rho(s) with rho(s) = exp(min(0, Re s) tau_max): every factor has modulus <= 1
-        shift = np.minimum(s.real, 0.0) * self.tau_max
-        return np.exp(-np.multiply.outer(self.tau, s) + shift)
+    def value_parts(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`value` of a 1-D complex ``z``, with ``|z|`` and the scaling exponent
+        ``min(0, Re z) tau_max`` it used: ``(h rho, sum |terms| rho, |z|, log rho)``."""
+        self.evaluations += z.size
+        if self.evaluations > self.budget or time.monotonic() > self.deadline:
+            self._charge(0)
+        shift = np.minimum(z.real, 0.0) * self.tau_max
+        e = np.exp(self._neg_tau * z + shift)
+        az = np.abs(z)
+        val = np.add.reduce(horner_rows(z, self._cols) * e, axis=0)
+        mag = np.add.reduce(horner_rows(az, self._abs_cols) * np.abs(e), axis=0)
+        return val, mag, az, shift
 
     def value(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Scaled ``h(s) rho(s)`` and the scaled magnitude ``sum |terms| rho(s)``."""
         s = np.asarray(s, dtype=complex)
-        self._charge(s.size)
-        e = self._exps(s)
-        polys = horner(s, self.c.T)
-        val = np.sum(polys * e, axis=0)
-        mag = np.sum(horner(np.abs(s), self.abs_c.T) * np.abs(e), axis=0)
-        return val, mag
+        val, mag, _, _ = self.value_parts(s.reshape(-1))
+        return val.reshape(s.shape), mag.reshape(s.shape)
 
     def newton_step(
         self, s: np.ndarray, q: QuasiPolynomial | None = None, dq: QuasiPolynomial | None = None
@@ -153,23 +198,35 @@ class Evaluator:
             dq = q.derivative()
         self._charge(2 * s.size)
         shift = np.minimum(s.real, 0.0) * self.tau_max
-        f = scaled_eval(q, s, shift)
-        df = scaled_eval(dq, s, shift)
+        if s.ndim == 1 and not q.is_zero and not dq.is_zero and q.delays.shape == dq.delays.shape \
+                and (q.delays == dq.delays).all():
+            # one exponential per delay for both (the same operations as scaled_eval of each)
+            e = np.exp(q.plan().neg_tau * s + shift)
+            f = np.add.reduce(horner_rows(s, q.plan().cols) * e, axis=0)
+            df = np.add.reduce(horner_rows(s, dq.plan().cols) * e, axis=0)
+        else:
+            f = scaled_eval(q, s, shift)
+            df = scaled_eval(dq, s, shift)
         with np.errstate(divide="ignore", invalid="ignore"):
             return f / df
 
     def deriv_bound(self, za: np.ndarray, zb: np.ndarray) -> np.ndarray:
         """Bound of ``|h'| rho_seg`` on segments, ``rho_seg = exp(min(0, min Re) tau_max)``."""
-        R = np.maximum(np.abs(za), np.abs(zb))
-        a = np.minimum(za.real, zb.real)
-        e = np.exp(-np.multiply.outer(self.tau, a) + np.minimum(a, 0.0) * self.tau_max)
-        return np.sum(horner(R, self.deriv_bound_coeffs.T) * e, axis=0)
+        return self.deriv_bound_at(np.maximum(np.abs(za), np.abs(zb)), np.minimum(za.real, zb.real))
+
+    def deriv_bound_at(self, R: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """:meth:`deriv_bound` from the segments' largest ``|s|`` (``R``) and smallest ``Re s`` (``a``), 1-D."""
+        e = np.exp(self._neg_tau * a + np.minimum(a, 0.0) * self.tau_max)
+        return np.add.reduce(horner_rows(R, self._db_cols) * e, axis=0)
 
 
 def scaled_eval(q: QuasiPolynomial, s: np.ndarray, shift: np.ndarray) -> np.ndarray:
     """``q(s) exp(shift)`` (zero for a zero ``q``), with every exponential scaled by ``exp(shift)``."""
     if q.is_zero:
         return np.zeros(s.shape, dtype=complex)
+    if s.ndim == 1:  # (the same operations with the quasi-polynomial's constant columns)
+        plan = q.plan()
+        return np.add.reduce(horner_rows(s, plan.cols) * np.exp(plan.neg_tau * s + shift), axis=0)
     e = np.exp(-np.multiply.outer(q.delays, s) + shift)
     return np.sum(horner(s, q.coeffs.T) * e, axis=0)
 

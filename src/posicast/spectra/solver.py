@@ -286,7 +286,8 @@ class Solver:
 
     def n_in(self, rect: tuple[float, float, float, float]) -> int:
         """Roots found in ``rect``, with multiplicity."""
-        return sum(f.mult for f in self.found if inside(np.array([f.point]), rect)[0])
+        a, b, c, d = rect
+        return sum(f.mult for f in self.found if a <= f.point.real <= b and c <= f.point.imag <= d)
 
     def search(self, rect: tuple[float, float, float, float], step: float) -> None:
         """Grid candidates in ``rect`` at ``step``, refined by Newton, absorbed and classified."""
@@ -313,8 +314,8 @@ class Solver:
                 f"inconsistent roots in {rect}: argument principle counts {count} but {have} roots were "
                 "refined there (clustered or ill-conditioned roots)"
             )
-        kids, counts = self._split(rect, step)
-        if sum(counts) != count:
+        kids, counts = self._split(rect, step, count)
+        if min(counts) < 0:  # cannot happen: both boundaries are certified root-free
             raise RootFindingError(f"inconsistent counts in {rect}: {count} vs {counts}")
         for k, n in zip(kids, counts):
             if n and self.n_in(k) < n:
@@ -327,21 +328,27 @@ class Solver:
                 self.reconcile(k, n, fine, depth + 1)
 
     def _split(
-        self, rect: tuple[float, float, float, float], step: float
+        self, rect: tuple[float, float, float, float], step: float, count: int
     ) -> tuple[list[tuple[float, float, float, float]], list[int]]:
-        """Two parts of ``rect`` and their certified counts, cut where no root is on the cut."""
+        """Two parts of ``rect`` and their certified counts, cut where no root is on the cut.
+
+        Only the first part is counted: its boundary holds the whole cut, so once it is certified
+        root-free the winding numbers of the two parts add up to ``rect``'s certified ``count``
+        (the cut is walked once each way), and the second part holds ``count`` minus the first's.
+        """
         a, b, c, d = rect
         # split off-centre (an arbitrary irrational fraction) along the longer side
         for frac in (0.5 + 0.0731, 0.5 - 0.1127, 0.5 + 0.2213, 0.3):
+            if b - a >= d - c:
+                m = a + frac * (b - a)
+                kids = [(a, m, c, d), (m, b, c, d)]
+            else:
+                m = c + frac * (d - c)
+                kids = [(a, b, c, m), (a, b, m, d)]
+            k0 = kids[0]
             try:
-                if b - a >= d - c:
-                    m = a + frac * (b - a)
-                    kids = [(a, m, c, d), (m, b, c, d)]
-                else:
-                    m = c + frac * (d - c)
-                    kids = [(a, b, c, m), (a, b, m, d)]
-                sub = [min(step, 0.5 * max(k[1] - k[0], k[3] - k[2])) for k in kids]
-                return kids, [count_in_rect(self.ev, k, st) for k, st in zip(kids, sub)]
+                n0 = count_in_rect(self.ev, k0, min(step, 0.5 * max(k0[1] - k0[0], k0[3] - k0[2])))
             except OnBoundary:
                 continue
+            return kids, [n0, count - n0]
         raise RootFindingError(f"could not split {rect} away from its roots")
