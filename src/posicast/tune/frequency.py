@@ -30,6 +30,7 @@ from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction
 from ..loops import Loop, feature_frequencies
 from ..spectra.difference import common_step as _spectra_common_step
+from .axis import OnAxis
 from .constraints import Constraint
 from .family import ControllerFamily
 
@@ -104,17 +105,21 @@ class _Term:
     def __init__(self, tf: TransferFunction) -> None:
         self.tf = tf
         self.zero = tf.num.is_zero
+        self.axis = OnAxis(tf)
         self.dnum = tf.num.derivative()
         self.dden = tf.den.derivative()
+        self._dnum, self._dden = OnAxis.quasi(self.dnum), OnAxis.quasi(self.dden)
 
-    def __call__(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(H(j omega), H'(j omega))`` at the real frequencies ``w``."""
         if self.zero:
-            z = np.zeros(s.shape, dtype=complex)
+            z = np.zeros(w.shape, dtype=complex)
             return z, z
-        val = np.asarray(self.tf(s), dtype=complex).reshape(s.shape)
-        D = np.asarray(self.tf.den(s)).reshape(s.shape)
-        dN = np.asarray(self.dnum(s)).reshape(s.shape)
-        dD = np.asarray(self.dden(s)).reshape(s.shape)
+        s = 1j * w
+        val, _, D = self.axis.parts(w)
+        dN, dD = self._dnum(s), self._dden(s)
+        if not (np.all(np.isfinite(dN)) and np.all(np.isfinite(dD))):  # the checked call names the overflow
+            dN, dD = np.asarray(self.dnum(s)).reshape(s.shape), np.asarray(self.dden(s)).reshape(s.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
             der = (dN - val * dD) / D
         der = np.where(np.isfinite(der), der, 0.0)
@@ -157,6 +162,7 @@ class FrequencyData:
         self.constraints = tuple(constraints)
         Pg = loop0.plant_gain
         self.plant = Pg
+        self._plant_axis = OnAxis(Pg)
         Cs = {k: _poly_tf(getattr(family, "n" + k), family.dC) for k in ("0", "x", "y")}
         one = TransferFunction.constant(1.0)
         tfs = {"u": one + Cs["0"] * Pg, "a": Cs["x"] * Pg, "b": Cs["y"] * Pg}
@@ -183,7 +189,7 @@ class FrequencyData:
         """
         family = self.family
         cons_tfs: list[dict[str, TransferFunction]] = []
-        self._factors: list[tuple[TransferFunction, bool, TransferFunction]] = []
+        self._factors: list[tuple[OnAxis, bool, OnAxis]] = []
         for c in self.constraints:
             src, dst = c.channel
             try:
@@ -203,7 +209,7 @@ class FrequencyData:
                         f"frequency for {family.describe()} (an ideal derivative); set derivative_filter"
                     )
             cons_tfs.append(d)
-            self._factors.append((R, through, c.weight_tf))
+            self._factors.append((OnAxis(R), through, OnAxis(c.weight_tf)))
         return cons_tfs
 
     def _initial_grid(self, Pg: TransferFunction, tfs: dict[str, TransferFunction],
@@ -233,13 +239,13 @@ class FrequencyData:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, w: np.ndarray) -> dict[str, np.ndarray]:
-        s = 1j * w
+        w = np.asarray(w, dtype=float)
         out: dict[str, np.ndarray] = {}
         for k, t in self._terms.items():
-            out[k], out["d" + k] = t(s)
+            out[k], out["d" + k] = t(w)
         for i, ct in enumerate(self._cterms):
             for k, t in ct.items():
-                out[f"{k}{i}"], out[f"d{k}{i}"] = t(s)
+                out[f"{k}{i}"], out[f"d{k}{i}"] = t(w)
         return out
 
     def values(self, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -255,14 +261,14 @@ class FrequencyData:
         w = np.asarray(w, dtype=float)
         s = 1j * w
         z = np.zeros(s.shape, dtype=complex)
-        P = np.asarray(self.plant(s), dtype=complex).reshape(s.shape)
+        P = self._plant_axis(w)
         with np.errstate(divide="ignore", invalid="ignore"):  # s = 0 is replaced below
             c0, cx, cy = (np.polyval(n, s) / np.polyval(d, s) if n.size else z for n, d in self._cpolys)
             out = {"u": 1.0 + c0 * P, "a": cx * P, "b": cy * P}
             for i, (R, through, W) in enumerate(self._factors):
-                r = np.asarray(R(s), dtype=complex).reshape(s.shape)
+                r = R(w)
                 out[f"nu{i}"], out[f"na{i}"], out[f"nb{i}"] = (c0 * r, cx * r, cy * r) if through else (r, z, z)
-                out[f"W{i}"] = np.asarray(W(s), dtype=complex).reshape(s.shape)
+                out[f"W{i}"] = W(w)
         at0 = np.flatnonzero(w == 0.0)
         if at0.size:
             s0 = s[at0]

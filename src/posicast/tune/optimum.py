@@ -21,6 +21,7 @@ from scipy.optimize import minimize_scalar
 
 from ..core.transfer import TransferFunction
 from ..spectra.rootfinder import RootFindingError
+from .axis import OnAxis
 from .branches import BranchTracker, active_branches, exact_bottom, exact_top, is_tracked
 from .cells import interval_point
 from .family import ControllerFamily
@@ -436,7 +437,8 @@ def _search_step(problem: Problem, region: Region, anchor: Anchor, s: _Search, r
 def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> tuple[float, float]:
     """``max |tf(j omega)|``: every grid local maximum within 2 % of the top is refined between its
     neighbours (an optimal design often has two equal peaks); limit values count as omega = inf."""
-    mag = np.abs(np.asarray(tf.freqresp(omega)))
+    H = OnAxis(tf)  # the numbers tf.freqresp gives, without its per-call checks
+    mag = np.abs(H(np.asarray(omega, dtype=float)))
     mag = np.where(np.isfinite(mag), mag, 0.0)
     top = float(mag.max())
     left = np.concatenate([[-np.inf], mag[:-1]])
@@ -446,7 +448,7 @@ def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> 
         lo, hi = omega[max(i - 1, 0)], omega[min(i + 1, omega.size - 1)]
         if hi <= lo:
             continue
-        res = minimize_scalar(lambda w: -abs(tf(1j * w)), bounds=(lo, hi), method="bounded",
+        res = minimize_scalar(lambda w: -abs(H(np.array([w]))[0]), bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-12 * max(hi, 1.0)})
         if -res.fun > best:
             best, where = float(-res.fun), float(res.x)
