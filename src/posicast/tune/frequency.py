@@ -21,7 +21,7 @@ exponential sums), sampled over one period of the commensurate delays.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -353,9 +353,19 @@ class FrequencyData:
                 idx = idx[: _MAX_POINTS - self.omega.size]
             new = 0.5 * (self.omega[idx] + self.omega[idx + 1])
             nv = self._evaluate(new)
-            order = np.argsort(np.concatenate([self.omega, new]), kind="stable")
-            self.omega = np.concatenate([self.omega, new])[order]
-            self._vals = {k: np.concatenate([self._vals[k], nv[k]])[order] for k in self._vals}
+            # each midpoint goes right after its left neighbour: the merged order without a sort
+            n = self.omega.size
+            at_new = idx + np.arange(1, idx.size + 1)
+            at_old = np.arange(n) + np.searchsorted(idx, np.arange(n), side="left")
+
+            def merged(old: np.ndarray, fresh: np.ndarray) -> np.ndarray:
+                out = np.empty(n + fresh.size, dtype=old.dtype)
+                out[at_old] = old
+                out[at_new] = fresh
+                return out
+
+            self.omega = merged(self.omega, new)
+            self._vals = {k: merged(self._vals[k], nv[k]) for k in self._vals}
 
     def _curve_point(self, vals: dict[str, np.ndarray], i: int) -> tuple[float, float] | None:
         u, a, b = vals["u"][i], vals["a"][i], vals["b"][i]
@@ -395,20 +405,28 @@ class FrequencyData:
         finite = np.isfinite(mag[:-1]) & np.isfinite(mag[1:])
         return bad & finite & (h > 1e-12 * self.omega[1:])
 
+    def _magnitudes(self) -> dict[str, np.ndarray]:
+        """``|v|`` of every value and derivative on the current grid (made once per grid)."""
+        cached = getattr(self, "_mag_cache", None)
+        if cached is None or cached[0] is not self._vals:
+            cached = (self._vals, {k: np.abs(v) for k, v in self._vals.items()})
+            self._mag_cache = cached
+        return cached[1]
+
     def allowed_spacing(self, X: float, Y: float) -> np.ndarray:
         """Per grid column, the spacing :meth:`refine` accepts there for gains up to ``X, Y``:
         ``delta`` times the size of ``1 + L`` (and of each constraint's terms) over their exact
         derivative, as in :meth:`_violations` (``inf`` where nothing changes)."""
-        v = self._vals
-        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
-        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
+        v = self._magnitudes()
+        mag = v["u"] + X * v["a"] + Y * v["b"]
+        der = v["du"] + X * v["da"] + Y * v["db"]
         with np.errstate(divide="ignore", invalid="ignore"):
             h = self.delta * np.maximum(mag, self.r_min) / der
             for i, c in enumerate(self.constraints):
-                W = np.abs(v[f"W{i}"]) / c.gamma
-                dW = np.abs(v[f"dW{i}"]) / c.gamma
-                nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
-                nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
+                W = v[f"W{i}"] / c.gamma
+                dW = v[f"dW{i}"] / c.gamma
+                nmag = v[f"nu{i}"] + X * v[f"na{i}"] + Y * v[f"nb{i}"]
+                nder = v[f"dnu{i}"] + X * v[f"dna{i}"] + Y * v[f"dnb{i}"]
                 h = np.fmin(h, self.delta * np.maximum(np.maximum(W * nmag, mag), self.r_min) / (dW * nmag + W * nder))
         return np.where(np.isnan(h), np.inf, h)
 
@@ -492,6 +510,8 @@ class Columns:
     a: np.ndarray
     b: np.ndarray
     constraints: tuple[ConstraintColumns, ...]
+    #: what the scan derives from these columns alone (per constraint, per line), made once
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_constraints(self) -> int:

@@ -23,7 +23,7 @@ from .frequency import Columns
 
 __all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
            "quadratic_root", "forbidden", "complement", "root_value", "root_values", "roots_at", "polish_ends",
-           "parabola_vertex", "exact_end", "forbidden_window"]
+           "parabola_vertex", "exact_end", "forbidden_window", "line_forbidden"]
 
 _INF = math.inf
 
@@ -79,10 +79,11 @@ class ForbiddenPiece(NamedTuple):
 
 
 class Forbidden(NamedTuple):
-    """Forbidden intervals of ``ky`` on ``m`` lines over ``K`` (column, constraint, piece) triples.
+    """Forbidden intervals of ``ky`` on ``m`` lines, ``K`` entries each ((column, constraint, piece) triples,
+    or runs of them: :func:`forbidden`).
 
     ``lo, hi, col_lo, col_hi`` are (m, K): the ends and the columns they are
-    attributed to; ``constraint, lower_root, upper_root`` are (K,).
+    attributed to; ``constraint, lower_root, upper_root`` are (K,) (the same on every line) or (m, K).
     """
 
     lo: np.ndarray
@@ -192,17 +193,28 @@ def quadratic_root(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarray, 
 
 
 # ---------------------------------------------------------------------- over frequency, on lines
-def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
-              dU: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Replace each forbidden interval by the hull of its run of consecutive valid columns.
+class _Runs(NamedTuple):
+    """One entry per frequency run of a piece: its line, first column, hull ``[lo, hi]`` and the columns
+    of the hull's extremes (row-major: by line, then column)."""
+
+    row: np.ndarray
+    first: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    col_lo: np.ndarray
+    col_hi: np.ndarray
+
+
+def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray, dU: np.ndarray) -> _Runs:
+    """The hull of each forbidden interval's run of consecutive valid columns, one entry per run.
 
     Over a connected range of frequencies where the interval exists, the union
     of the intervals is the interval ``[min lo, max hi]`` (a continuous family
     of intervals with a connected parameter set), so the hull is the exact
     union, whatever the grid spacing; where the interval vanished between two
     grid points the hull forbids a little more, never less.  The grid and the
-    limit columns are separate runs.  Returns ``L, H`` and the columns of the
-    run's extremes (for the polish and the exact refinement).
+    limit columns are separate runs.  Each run is named by the columns of its
+    extremes (for the polish and the exact refinement).
 
     Two neighbouring columns belong to one run only where the grid resolves
     ``1 + L`` for the gains at the intervals' location: ``|dU| + |y| |db|``
@@ -210,9 +222,12 @@ def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
     stay below a quarter of the constraint radius.  Elsewhere (e.g. far out,
     where a delay turns the phase quickly between coarse points) the
     intervals are kept as they are.
+
+    Every column of a run would carry the same hull, so one entry stands for the run: the union, and
+    which interval bounds it, do not change, and with a lumped shaper's tens of thousands of columns
+    the complement's sort stays small (issue #15).
     """
     m, n = V.shape
-    cols_idx = np.broadcast_to(np.arange(n), (m, n))
     prev = np.zeros_like(V)
     prev[:, 1:] = V[:, :-1]
     if n > cols.n_grid:
@@ -223,36 +238,66 @@ def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
         ymax = np.maximum(y[:, 1:], y[:, :-1])
         change = dU + ymax * np.abs(np.diff(cols.b))[None, :]
     prev[:, 1:] &= change <= 0.25 * cols.data.r_min
-    start = V & ~prev
-    if not V.any():
-        return L, H, cols_idx.copy(), cols_idx.copy()
+    where = np.flatnonzero(V.ravel())
+    if not where.size:
+        e = np.zeros(0, dtype=int)
+        return _Runs(e, e, np.zeros(0), np.zeros(0), e, e)
     # runs are contiguous in the flattened valid entries: segment reductions with reduceat
-    Vf = V.ravel()
-    Lv, Hv, Cv = L.ravel()[Vf], H.ravel()[Vf], cols_idx.ravel()[Vf]
-    starts = np.flatnonzero(start.ravel()[Vf])
+    Lv, Hv, Cv = L.ravel()[where], H.ravel()[where], where % n
+    sv = ~prev.ravel()[where]
+    starts = np.flatnonzero(sv)
     lo = np.minimum.reduceat(Lv, starts)
     hi = np.maximum.reduceat(Hv, starts)
-    seg = np.cumsum(start.ravel()[Vf]) - 1
+    seg = np.cumsum(sv) - 1
     amin = np.minimum.reduceat(np.where(Lv == lo[seg], Cv, n), starts)
     amax = np.minimum.reduceat(np.where(Hv == hi[seg], Cv, n), starts)
-    outL, outH = L.copy(), H.copy()
-    cl, ch = cols_idx.copy(), cols_idx.copy()
-    outL.ravel()[Vf] = lo[seg]
-    outH.ravel()[Vf] = hi[seg]
-    cl.ravel()[Vf] = amin[seg]
-    ch.ravel()[Vf] = amax[seg]
-    return outL, outH, cl, ch
+    return _Runs(where[starts] // n, Cv[starts], lo, hi, amin, amax)
+
+
+def _entries(lo: np.ndarray, hi: np.ndarray, col: np.ndarray) -> _Runs:
+    """Each non-empty entry (``lo < inf``) of a piece not joined over frequency, as a run of its own."""
+    row, j = np.nonzero(lo < _INF)
+    return _Runs(row, j, lo[row, j], hi[row, j], col[row, j], col[row, j])
+
+
+def _compact(m: int, parts: list[tuple[_Runs, int, int, int, int]]) -> Forbidden:
+    """The runs of every piece ``(runs, first column's index, constraint, lower root, upper root)`` as one
+    :class:`Forbidden` with a row per line, in the order of the pieces and columns, padded with empty
+    entries ``[inf, -inf]``."""
+    row = np.concatenate([r.row for r, *_ in parts])
+    order = np.lexsort((np.concatenate([r.first + off for r, off, *_ in parts]), row))
+    row = row[order]
+    count = np.bincount(row, minlength=m)
+    k = max(1, int(count.max()))
+    pos = np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+
+    def fill(values: list[np.ndarray], pad: float) -> np.ndarray:
+        flat = np.concatenate(values)
+        out = np.full((m, k), pad, dtype=flat.dtype)
+        out[row, pos] = flat[order]
+        return out
+
+    def each(i: int) -> list[np.ndarray]:
+        return [np.full(r.row.size, p[i]) for r, *p in parts]
+
+    none = int(Root.INFINITE)
+    return Forbidden(fill([r.lo for r, *_ in parts], _INF), fill([r.hi for r, *_ in parts], -_INF),
+                     fill([r.col_lo for r, *_ in parts], 0), fill([r.col_hi for r, *_ in parts], 0),
+                     fill(each(1), 0), fill(each(2), none), fill(each(3), none))
 
 
 def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = True) -> Forbidden:
     """Forbidden ky-intervals for lines ``x`` (m,), over every column and constraint in ``which``.
 
-    Each (column, constraint) gives the pieces of :func:`forbidden_interval`;
-    with ``hull`` each piece is replaced by the hull of its frequency run
-    (:func:`_run_hull`).
+    Each (column, constraint) gives the pieces of :func:`forbidden_interval`.  With ``hull`` each piece
+    is replaced by the hull of its frequency runs (:func:`_run_hull`), one entry per run, and the
+    entries differ from line to line (``constraint`` and the roots too have shape (m, K)); without, there
+    is one entry per column and piece, the same on every line (``constraint`` and the roots: (K,)).
     """
     m = x.size
-    los, his, cl, ch, cons, lr, hr = [], [], [], [], [], [], []
+    los, his, cl, cons, lr, hr = [], [], [], [], [], []
+    runs: list[tuple[_Runs, int, int, int, int]] = []
+    offset = 0
     ncol = cols.u.size
     colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
     # 1 + L without ky, in real and imaginary parts (the same numbers as u + x a in complex arithmetic)
@@ -271,31 +316,41 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
             N = nu[None, :] + x[:, None] * na[None, :]
             pieces = [(pc, None) for pc in forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])]
         for (lo_, hi_, lroot, hroot, V), on in pieces:
+            first, offset = offset, offset + lo_.shape[1]
             if (V is not None and not V.any()) or (V is None and not np.any(lo_ <= hi_)):
                 continue  # empty everywhere on these lines (e.g. no A < 0 for an unweighted Ms bound)
-            if hull and V is not None:
-                lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
-            else:
-                c_lo = c_hi = colidx if on is None else colidx[:, on]
+            c_at = colidx if on is None else colidx[:, on]
+            if hull:
+                r = _run_hull(cols, lo_, hi_, V, dU) if V is not None else _entries(lo_, hi_, c_at)
+                runs.append((r, first, ci, int(lroot), int(hroot)))
+                continue
             los.append(lo_)
             his.append(hi_)
-            cl.append(c_lo)
-            ch.append(c_hi)
+            cl.append(c_at)
             cons.append(np.full(lo_.shape[1], ci))
             lr.append(np.full(lo_.shape[1], int(lroot)))
             hr.append(np.full(lo_.shape[1], int(hroot)))
+    if runs:
+        return _compact(m, runs)
     if not los:  # nothing forbidden anywhere: one empty piece keeps the shapes
-        los, his, cl, ch = [np.full((m, 1), _INF)], [np.full((m, 1), -_INF)], [np.zeros((m, 1), int)], \
-            [np.zeros((m, 1), int)]
+        los, his, cl = [np.full((m, 1), _INF)], [np.full((m, 1), -_INF)], [np.zeros((m, 1), int)]
         cons, lr, hr = [np.zeros(1, int)], [np.full(1, int(Root.INFINITE))], [np.full(1, int(Root.INFINITE))]
-    return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), np.concatenate(cl, axis=1),
-                     np.concatenate(ch, axis=1), np.concatenate(cons), np.concatenate(lr), np.concatenate(hr))
+    col = np.concatenate(cl, axis=1)
+    return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), col, col, np.concatenate(cons),
+                     np.concatenate(lr), np.concatenate(hr))
 
 
 def _fixed_numerator(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``(A, w2 |nu|^2)`` per column when constraint ``ci``'s numerator does not depend on the gains
     (``na = nb = 0``: a bound on ``S``, weighted or not), so that ``A = |b|^2 >= 0`` at every column
     (0 where ``b`` vanishes, e.g. the limit columns of a decaying ``b``); else None."""
+    key = ("fixed numerator", ci)
+    if key not in cols.cache:
+        cols.cache[key] = _fixed_numerator_of(cols, ci)
+    return cols.cache[key]
+
+
+def _fixed_numerator_of(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | None:
     nu, na, nb, w2 = cols.constraints[ci]
     if np.any(na != 0) or np.any(nb != 0):
         return None
@@ -351,6 +406,19 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
     return out
 
 
+def line_forbidden(cols: Columns, x: float) -> Forbidden:
+    """:func:`forbidden` on the line ``x`` over every column and constraint, without the hull: the few
+    lines the exact optimum visits are asked for again and again (the branches above and below, the
+    limit columns), so the last ones are kept with the columns."""
+    memo = cols.cache.setdefault("lines", {})
+    key = float(x)
+    if key not in memo:
+        if len(memo) >= 8:
+            memo.pop(next(iter(memo)))
+        memo[key] = forbidden(cols, np.array([key]), range(cols.n_constraints), hull=False)
+    return memo[key]
+
+
 #: What bounds each admissible interval of a line, below and above.
 Ends = list[tuple[IntervalEnd, IntervalEnd]]
 
@@ -361,6 +429,10 @@ def complement(f: Forbidden) -> list[tuple[np.ndarray, Ends]]:
     los = np.take_along_axis(f.lo, order, axis=1)
     his = np.take_along_axis(f.hi, order, axis=1)
     cm = np.maximum.accumulate(his, axis=1)
+    if f.constraint.ndim == 1:  # one entry per column, the same on every line
+        shape = f.lo.shape
+        f = f._replace(constraint=np.broadcast_to(f.constraint, shape), lower_root=np.broadcast_to(f.lower_root, shape),
+                       upper_root=np.broadcast_to(f.upper_root, shape))
     return [_line_complement(f, i, los[i], cm[i], order[i], his[i]) for i in range(f.lo.shape[0])]
 
 
@@ -376,12 +448,12 @@ def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: n
     def attr_hi(j: int) -> Branch | None:  # the interval whose hi is the running max at j
         k = int(np.argmax(hi_[: j + 1]))
         kk = oi[k]
-        return Branch(int(f.col_hi[i, kk]), int(f.constraint[kk]), int(f.upper_root[kk])) \
+        return Branch(int(f.col_hi[i, kk]), int(f.constraint[i, kk]), int(f.upper_root[i, kk])) \
             if math.isfinite(hi_[k]) else None
 
     def attr_lo(j: int) -> Branch | None:
         kk = oi[j]
-        return Branch(int(f.col_lo[i, kk]), int(f.constraint[kk]), int(f.lower_root[kk])) \
+        return Branch(int(f.col_lo[i, kk]), int(f.constraint[i, kk]), int(f.lower_root[i, kk])) \
             if math.isfinite(li[j]) else None
 
     iv: list[tuple[float, float]] = []

@@ -239,7 +239,12 @@ def _probe_top(problem: Problem, region: Region, i: int, x: float) -> Probe:
 
     Pieces are taken best-first; the first stable one decides.
     """
-    ln = scan_lines(problem, np.array([x]))[0]
+    return _probe_line(problem, region, i, scan_lines(problem, np.array([x]))[0])
+
+
+def _probe_line(problem: Problem, region: Region, i: int, ln: LineData) -> Probe:
+    """:func:`_probe_top` on the freshly scanned line ``ln``."""
+    x = ln.x
     ref = region.lines[i]
     cells = region.cells
     for j in range(ln.n_segments):
@@ -304,8 +309,9 @@ def _bracket_branches(problem: Problem, region: Region, anchor: Anchor, lo_x: fl
     uppers: list[Branch] = [anchor.end]  # type: ignore[list-item]  # a Branch: the caller checked
     lowers: list[Branch] = []
     cols = problem.columns
-    for xs in np.unique(np.concatenate([np.linspace(lo_x, hi_x, 5), [anchor.x]])):
-        ys, _, bs = _probe_top(problem, region, anchor.line, float(xs))
+    xs_all = np.unique(np.concatenate([np.linspace(lo_x, hi_x, 5), [anchor.x]]))
+    for xs, ln in zip(xs_all, scan_lines(problem, xs_all)):  # the fresh lines in one scan
+        ys, _, bs = _probe_line(problem, region, anchor.line, ln)
         if not (math.isfinite(ys) and ys > bs):
             continue  # closed here: the branches that close it are found where it is open
         for br in active_branches(cols, float(xs), ys, bs, band=0.5):
