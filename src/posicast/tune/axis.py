@@ -72,6 +72,8 @@ class OnAxis:
         return _Sum(q)
 
     def __call__(self, w: np.ndarray) -> np.ndarray:
+        if self.constant is not None:
+            return np.full(np.shape(w), self.constant)
         return self.parts(w)[0]
 
     def parts(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -16,7 +16,8 @@ from typing import Sequence
 import numpy as np
 
 from .frequency import Columns
-from .hinf import Branch, IntervalEnd, exact_end, line_forbidden, parabola_vertex, root_values, roots_at
+from .hinf import Branch, IntervalEnd, line_forbidden
+from .refine import exact_end, parabola_vertex, root_values, roots_at
 
 __all__ = ["active_branches", "branch_value", "BranchTracker", "is_tracked", "exact_top", "exact_bottom"]
 

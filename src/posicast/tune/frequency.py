@@ -26,7 +26,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..core.quasipoly import QuasiPolynomial
+from ..core.quasipoly import QuasiPolynomial, horner
 from ..core.transfer import TransferFunction
 from ..loops import Loop, feature_frequencies
 from ..spectra.difference import common_step as _spectra_common_step
@@ -34,7 +34,7 @@ from .axis import OnAxis
 from .constraints import Constraint
 from .family import ControllerFamily
 
-__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns"]
+__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns", "thinnable"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -163,6 +163,7 @@ class FrequencyData:
         Pg = loop0.plant_gain
         self.plant = Pg
         self._plant_axis = OnAxis(Pg)
+        self._plant_term = _Term(Pg)
         Cs = {k: _poly_tf(getattr(family, "n" + k), family.dC) for k in ("0", "x", "y")}
         one = TransferFunction.constant(1.0)
         tfs = {"u": one + Cs["0"] * Pg, "a": Cs["x"] * Pg, "b": Cs["y"] * Pg}
@@ -190,6 +191,7 @@ class FrequencyData:
         family = self.family
         cons_tfs: list[dict[str, TransferFunction]] = []
         self._factors: list[tuple[OnAxis, bool, OnAxis]] = []
+        self._factor_terms: list[tuple[_Term, bool, _Term]] = []
         for c in self.constraints:
             src, dst = c.channel
             try:
@@ -210,6 +212,7 @@ class FrequencyData:
                     )
             cons_tfs.append(d)
             self._factors.append((OnAxis(R), through, OnAxis(c.weight_tf)))
+            self._factor_terms.append((_Term(R), through, _Term(c.weight_tf)))
         return cons_tfs
 
     def _initial_grid(self, Pg: TransferFunction, tfs: dict[str, TransferFunction],
@@ -239,13 +242,46 @@ class FrequencyData:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, w: np.ndarray) -> dict[str, np.ndarray]:
+        """Every quantity and its derivative ``d/ds`` at the frequencies ``w``: as :meth:`values`, from the
+        plant ``P``, each constraint's ``R`` and ``W`` (with their derivatives) and the controller's parts,
+        so that ``P`` is evaluated once, not once per term; ``omega = 0`` through the combined terms."""
         w = np.asarray(w, dtype=float)
+        s = 1j * w
+        z = np.zeros(s.shape, dtype=complex)
+        P, dP = self._plant_term(w)
         out: dict[str, np.ndarray] = {}
-        for k, t in self._terms.items():
-            out[k], out["d" + k] = t(w)
-        for i, ct in enumerate(self._cterms):
-            for k, t in ct.items():
-                out[f"{k}{i}"], out[f"d{k}{i}"] = t(w)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            c: list[tuple[np.ndarray, np.ndarray] | None] = []  # each part and its derivative (None: 0)
+            for n, d in self._cpolys:
+                if not n.size:
+                    c.append(None)
+                    continue
+                nv, dv = np.polyval(n, s), np.polyval(d, s)
+                c.append((nv / dv, (np.polyval(np.polyder(n), s) * dv - nv * np.polyval(np.polyder(d), s)) / (dv * dv)))
+
+            def times(part: tuple[np.ndarray, np.ndarray] | None, h: np.ndarray,
+                      dh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                return (z, z) if part is None else (part[0] * h, part[1] * h + part[0] * dh)
+
+            for k, part in zip(("u", "a", "b"), c):
+                out[k], out["d" + k] = times(part, P, dP)
+            out["u"] = out["u"] + 1.0
+            for i, (R, through, W) in enumerate(self._factor_terms):
+                r, dr = R(w)
+                for k, part in zip(("nu", "na", "nb"), c):
+                    out[f"{k}{i}"], out[f"d{k}{i}"] = times(part, r, dr) if through else (
+                        (r, dr) if k == "nu" else (z, z))
+                out[f"W{i}"], out[f"dW{i}"] = W(w)
+        for k in out:
+            if k.startswith("d"):
+                out[k] = np.where(np.isfinite(out[k]), out[k], 0.0)
+        at0 = np.flatnonzero(w == 0.0)
+        if at0.size:
+            for k, t in self._terms.items():
+                out[k][at0], out["d" + k][at0] = t(w[at0])
+            for i, ct in enumerate(self._cterms):
+                for k, t in ct.items():
+                    out[f"{k}{i}"][at0], out[f"d{k}{i}"][at0] = t(w[at0])
         return out
 
     def values(self, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -263,7 +299,7 @@ class FrequencyData:
         z = np.zeros(s.shape, dtype=complex)
         P = self._plant_axis(w)
         with np.errstate(divide="ignore", invalid="ignore"):  # s = 0 is replaced below
-            c0, cx, cy = (np.polyval(n, s) / np.polyval(d, s) if n.size else z for n, d in self._cpolys)
+            c0, cx, cy = (horner(s, n[::-1]) / horner(s, d[::-1]) if n.size else z for n, d in self._cpolys)
             out = {"u": 1.0 + c0 * P, "a": cx * P, "b": cy * P}
             for i, (R, through, W) in enumerate(self._factors):
                 r = R(w)
@@ -530,6 +566,11 @@ def columns_of(fd: FrequencyData) -> Columns:
 _THIN_ABOVE = 8000
 
 
+def thinnable(cols: Columns) -> bool:
+    """Can :func:`thin_columns` keep fewer than all columns (a large grid, and the frequency data's current one)?"""
+    return cols.n_grid >= _THIN_ABOVE and cols.data.omega.size == cols.n_grid
+
+
 def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray | None]:
     """The grid columns that lines with ``|kx| <= X`` need for ``|ky| <= Y``: ``(columns, their indices)``,
     or ``(cols, None)`` for all of them.
@@ -548,7 +589,7 @@ def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray
     of its points.  The first and last grid columns and every limit column are kept.  Grids below ``_THIN_ABOVE`` columns are used whole.
     """
     n = cols.n_grid
-    if n < _THIN_ABOVE or cols.data.omega.size != n:  # small, or columns of an older grid: all of them
+    if not thinnable(cols):  # small, or columns of an older grid: all of them
         return cols, None
     h = cols.data.allowed_spacing(float(X), float(Y))
     step = np.diff(cols.omega) / np.fmin(h[:-1], h[1:])

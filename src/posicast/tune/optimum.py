@@ -25,7 +25,8 @@ from .axis import OnAxis
 from .branches import BranchTracker, active_branches, exact_bottom, exact_top, is_tracked
 from .cells import interval_point
 from .family import ControllerFamily
-from .hinf import Branch, Cut, IntervalEnd, exact_end
+from .hinf import Branch, Cut, IntervalEnd
+from .refine import exact_end
 from .regions import Region, best_piece
 from .result import TuningResult
 from .scan import LineData, Problem, scan_lines
