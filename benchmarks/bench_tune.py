@@ -21,6 +21,10 @@ structure; goals: every design (the 12 above and these 6) <= 2 s, and each
 lumped design <= 2x its DeZV design.  (The inverse ZVD and EI loops are neutral
 for every PD and are refused at once, without a scan.)
 
+Issue #15 (wave 5): the demo report designs seed 001's Table 1 three times (as printed, with the fitted
+loop delay and 41 lines, with a derivative filter and 41 lines): 36 designs, CPU median next to the
+figure before wave 5 (12.9 s, idle machine); goal <= 5 s.
+
 Usage: python benchmarks/bench_tune.py [--quick]
 """
 
@@ -36,7 +40,12 @@ from posicast.cases import ALL
 from posicast.shapers import design
 from posicast.testing import sample_check
 from posicast.tune import tune_pd
-from posicast_reports.seed001 import STRUCTURES, table1
+from posicast_reports.seed001 import PAPER_DELAY, STRUCTURES, table1
+from posicast_reports.seed001_report import GAINS_ONLY_LINES, TF
+
+#: CPU of the demo's 36 designs before wave 5 of issue #15 (idle machine, one BLAS thread)
+DEMO_DESIGNS_BEFORE = 12.9
+DEMO_DESIGNS_GOAL = 5.0
 
 LUMPED = ("zv", "zvd", "ei")
 
@@ -67,6 +76,13 @@ def lumped_rows(runs: int) -> tuple[list[list[str]], bool]:
             rows.append([structure.replace("_", " "), kind.upper(), f"{t:.2f}", f"{t / base:.2f}", kp,
                          "met" if met else "MISSED"])
     return rows, ok
+
+
+def demo_designs() -> None:
+    """The 36 designs of the demo report's seed 001 section, one CPU figure."""
+    table1(0.0)
+    table1(PAPER_DELAY, n_lines=GAINS_ONLY_LINES)
+    table1(0.0, derivative_filter=TF, n_lines=GAINS_ONLY_LINES)
 
 
 def main() -> int:
@@ -120,6 +136,12 @@ def main() -> int:
     print(md_table(["structure", "shaper", "design CPU [s]", "ratio to DeZV", "Kp", "goal (<= 2 s and <= 2x DeZV)"],
                    lrows))
     print(f"\nlumped designs: all goals {'met' if lok else 'MISSED'}")
+
+    druns = 1 if args.quick else 3
+    t_demo, _ = _cpu_median(demo_designs, druns)
+    print(f"\nissue #15: the demo's 36 seed 001 designs (Table 1 three times), median CPU of {druns} runs: "
+          f"{t_demo:.2f} s; before wave 5 {DEMO_DESIGNS_BEFORE:.1f} s (ratio {t_demo / DEMO_DESIGNS_BEFORE:.2f}); "
+          f"goal <= {DEMO_DESIGNS_GOAL:.0f} s: {'met' if t_demo <= DEMO_DESIGNS_GOAL else 'MISSED'}")
     return 1 if failures else 0
 
 

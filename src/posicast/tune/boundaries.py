@@ -21,7 +21,7 @@ On a scan line these are the *breaks* (:class:`BreakKind`); between two lines,
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any, NamedTuple
 
@@ -169,6 +169,13 @@ class ComplexCurve:
     x: np.ndarray
     y: np.ndarray
     ok: bool
+    _lines: dict[str, _Polyline] = field(default_factory=dict, repr=False, compare=False)
+
+    def polyline(self, along: str) -> _Polyline:
+        """The curve's segments for crossings of ``along = level`` (``'x'`` or ``'y'``), made once."""
+        if along not in self._lines:
+            self._lines[along] = _polyline(self.x, self.y) if along == "x" else _polyline(self.y, self.x)
+        return self._lines[along]
 
 
 def complex_curve(cols: Columns) -> ComplexCurve:
@@ -185,26 +192,42 @@ def complex_curve(cols: Columns) -> ComplexCurve:
     return ComplexCurve(cross_ok, curve_x, curve_y, ok)
 
 
-def _curve_crossings(c_along: np.ndarray, c_across: np.ndarray,
-                     level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where the polyline ``(c_along, c_across)`` crosses ``c_along = level``: (row, value across, column).
+class _Polyline(NamedTuple):
+    """The curve's usable segments in one orientation, for :func:`_curve_crossings`: the coordinate
+    crossed (``along``) and the other one (``across``), the segments not across a jump (a pole of the
+    curve) and the closed span of ``along`` over each."""
 
-    A segment ``j`` crosses level ``i`` when ``(c_along[j] - level[i])`` and ``(c_along[j + 1] - level[i])``
+    along: np.ndarray
+    across: np.ndarray
+    seg: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+def _polyline(c_along: np.ndarray, c_across: np.ndarray) -> _Polyline:
+    p, q = c_along[:-1], c_along[1:]
+    jump = np.abs(c_across[1:] - c_across[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_across[:-1]), np.abs(c_across[1:])))
+    jump |= np.abs(q - p) > 1e3 * (1.0 + np.minimum(np.abs(p), np.abs(q)))
+    seg = np.flatnonzero(~jump & ~np.isnan(p) & ~np.isnan(q))
+    return _Polyline(c_along, c_across, seg, np.minimum(p[seg], q[seg]), np.maximum(p[seg], q[seg]))
+
+
+def _curve_crossings(line: _Polyline, level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the polyline ``(line.along, line.across)`` crosses ``along = level``: (row, value across, column).
+
+    A segment ``j`` crosses level ``i`` when ``(along[j] - level[i])`` and ``(along[j + 1] - level[i])``
     do not have the same strict sign, i.e. the level lies in the segment's closed span; segments across
     a jump (a pole of the curve) are skipped.  The levels are sorted once and each segment's span is
     located among them by binary search, so the cost grows with the number of segments and of
     crossings, not with their product.  Sorted by row, then column.
     """
     level = np.asarray(level, dtype=float)
-    p, q = c_along[:-1], c_along[1:]
-    jump = np.abs(c_across[1:] - c_across[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_across[:-1]), np.abs(c_across[1:])))
-    jump |= np.abs(q - p) > 1e3 * (1.0 + np.minimum(np.abs(p), np.abs(q)))
-    seg = np.flatnonzero(~jump & ~np.isnan(p) & ~np.isnan(q))
+    c_along, c_across, seg = line.along, line.across, line.seg
     order = np.argsort(level, kind="stable")
     order = order[~np.isnan(level[order])]
     sl = level[order]
-    start = np.searchsorted(sl, np.minimum(p[seg], q[seg]), side="left")
-    count = np.searchsorted(sl, np.maximum(p[seg], q[seg]), side="right") - start
+    start = np.searchsorted(sl, line.lo, side="left")
+    count = np.searchsorted(sl, line.hi, side="right") - start
     count = np.maximum(count, 0)
     cols = np.repeat(seg, count)
     first = np.repeat(np.cumsum(count) - count, count)
@@ -238,7 +261,7 @@ class ComplexBreaks(NamedTuple):
 def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[ComplexBreaks]:
     """Per line ``kx = x[i]``: the complex-root crossings, interpolated between grid columns."""
     if curve.ok:
-        rows, ys, cc = _curve_crossings(curve.x, curve.y, x)
+        rows, ys, cc = _curve_crossings(curve.polyline("x"), x)
         err = np.abs(curve.y[cc + 1] - curve.y[cc])
         return [ComplexBreaks(ys[k], cc[k], err[k]) for k in _split_rows(rows, x.size)]
     return _complex_breaks_general(cols, curve, x)
@@ -302,7 +325,7 @@ def _curve_hits(cols: Columns, curve: ComplexCurve, lo: np.ndarray, hi: np.ndarr
     if curve.ok:
         for k in range(0, ys.size, block):
             sl = slice(k, k + block)
-            rows, xs, _ = _curve_crossings(curve.y, curve.x, ys[sl])
+            rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl])
             inside = (xs >= lo[sl][rows]) & (xs <= hi[sl][rows])
             hit[sl] = np.bincount(rows[inside], minlength=ys[sl].size) > 0
         return hit

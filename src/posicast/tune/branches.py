@@ -16,7 +16,8 @@ from typing import Sequence
 import numpy as np
 
 from .frequency import Columns
-from .hinf import Branch, IntervalEnd, exact_end, forbidden, parabola_vertex, root_values, roots_at
+from .hinf import Branch, IntervalEnd, line_forbidden
+from .refine import exact_end, parabola_vertex, root_values, roots_at
 
 __all__ = ["active_branches", "branch_value", "BranchTracker", "is_tracked", "exact_top", "exact_bottom"]
 
@@ -34,7 +35,7 @@ def active_branches(cols: Columns, x: float, top: float, bottom: float, band: fl
     grid value (2.1 % was seen at a delay-induced branch), and a candidate that
     does not bind costs only its exact evaluation.
     """
-    f = forbidden(cols, np.array([x]), range(cols.n_constraints), hull=False)
+    f = line_forbidden(cols, x)
     vals_all = f.lo[0] if upper else -f.hi[0]
     rid = f.lower_root if upper else f.upper_root
     col = f.col_lo[0]
@@ -178,7 +179,7 @@ def exact_top(cols: Columns, x: float, top: float, bottom: float) -> tuple[float
     if best_end is None:
         best = top
     # limit columns (omega -> infinity) are exact as they stand
-    f = forbidden(cols, np.array([x]), range(cols.n_constraints), hull=False)
+    f = line_forbidden(cols, x)
     lo, col = f.lo[0], f.col_lo[0]
     lim = (col >= cols.n_grid) & np.isfinite(lo) & (lo >= bottom) & (lo < best)
     if np.any(lim):

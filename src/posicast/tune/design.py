@@ -16,7 +16,8 @@
    the loop's own channels.
 
 The stages live in their own modules: :mod:`~posicast.tune.frequency` (the
-frequency data), :mod:`~posicast.tune.hinf` (H-infinity constraints on a line),
+frequency data; :mod:`~posicast.tune.axis` evaluates it), :mod:`~posicast.tune.hinf` (H-infinity
+constraints on a line; :mod:`~posicast.tune.refine` refines their ends),
 :mod:`~posicast.tune.boundaries` (D-decomposition), :mod:`~posicast.tune.scan`
 (the line scan), :mod:`~posicast.tune.cells` (stability cells),
 :mod:`~posicast.tune.regions` (the region), :mod:`~posicast.tune.branches` and

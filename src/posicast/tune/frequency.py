@@ -21,19 +21,20 @@ exponential sums), sampled over one period of the commensurate delays.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..core.quasipoly import QuasiPolynomial
+from ..core.quasipoly import QuasiPolynomial, horner
 from ..core.transfer import TransferFunction
 from ..loops import Loop, feature_frequencies
 from ..spectra.difference import common_step as _spectra_common_step
+from .axis import OnAxis
 from .constraints import Constraint
 from .family import ControllerFamily
 
-__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns"]
+__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns", "thinnable"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -104,17 +105,21 @@ class _Term:
     def __init__(self, tf: TransferFunction) -> None:
         self.tf = tf
         self.zero = tf.num.is_zero
+        self.axis = OnAxis(tf)
         self.dnum = tf.num.derivative()
         self.dden = tf.den.derivative()
+        self._dnum, self._dden = OnAxis.quasi(self.dnum), OnAxis.quasi(self.dden)
 
-    def __call__(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(H(j omega), H'(j omega))`` at the real frequencies ``w``."""
         if self.zero:
-            z = np.zeros(s.shape, dtype=complex)
+            z = np.zeros(w.shape, dtype=complex)
             return z, z
-        val = np.asarray(self.tf(s), dtype=complex).reshape(s.shape)
-        D = np.asarray(self.tf.den(s)).reshape(s.shape)
-        dN = np.asarray(self.dnum(s)).reshape(s.shape)
-        dD = np.asarray(self.dden(s)).reshape(s.shape)
+        s = 1j * w
+        val, _, D = self.axis.parts(w)
+        dN, dD = self._dnum(s), self._dden(s)
+        if not (np.all(np.isfinite(dN)) and np.all(np.isfinite(dD))):  # the checked call names the overflow
+            dN, dD = np.asarray(self.dnum(s)).reshape(s.shape), np.asarray(self.dden(s)).reshape(s.shape)
         with np.errstate(divide="ignore", invalid="ignore"):
             der = (dN - val * dD) / D
         der = np.where(np.isfinite(der), der, 0.0)
@@ -157,6 +162,8 @@ class FrequencyData:
         self.constraints = tuple(constraints)
         Pg = loop0.plant_gain
         self.plant = Pg
+        self._plant_axis = OnAxis(Pg)
+        self._plant_term = _Term(Pg)
         Cs = {k: _poly_tf(getattr(family, "n" + k), family.dC) for k in ("0", "x", "y")}
         one = TransferFunction.constant(1.0)
         tfs = {"u": one + Cs["0"] * Pg, "a": Cs["x"] * Pg, "b": Cs["y"] * Pg}
@@ -183,7 +190,8 @@ class FrequencyData:
         """
         family = self.family
         cons_tfs: list[dict[str, TransferFunction]] = []
-        self._factors: list[tuple[TransferFunction, bool, TransferFunction]] = []
+        self._factors: list[tuple[OnAxis, bool, OnAxis]] = []
+        self._factor_terms: list[tuple[_Term, bool, _Term]] = []
         for c in self.constraints:
             src, dst = c.channel
             try:
@@ -203,7 +211,8 @@ class FrequencyData:
                         f"frequency for {family.describe()} (an ideal derivative); set derivative_filter"
                     )
             cons_tfs.append(d)
-            self._factors.append((R, through, c.weight_tf))
+            self._factors.append((OnAxis(R), through, OnAxis(c.weight_tf)))
+            self._factor_terms.append((_Term(R), through, _Term(c.weight_tf)))
         return cons_tfs
 
     def _initial_grid(self, Pg: TransferFunction, tfs: dict[str, TransferFunction],
@@ -233,13 +242,46 @@ class FrequencyData:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, w: np.ndarray) -> dict[str, np.ndarray]:
+        """Every quantity and its derivative ``d/ds`` at the frequencies ``w``: as :meth:`values`, from the
+        plant ``P``, each constraint's ``R`` and ``W`` (with their derivatives) and the controller's parts,
+        so that ``P`` is evaluated once, not once per term; ``omega = 0`` through the combined terms."""
+        w = np.asarray(w, dtype=float)
         s = 1j * w
+        z = np.zeros(s.shape, dtype=complex)
+        P, dP = self._plant_term(w)
         out: dict[str, np.ndarray] = {}
-        for k, t in self._terms.items():
-            out[k], out["d" + k] = t(s)
-        for i, ct in enumerate(self._cterms):
-            for k, t in ct.items():
-                out[f"{k}{i}"], out[f"d{k}{i}"] = t(s)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            c: list[tuple[np.ndarray, np.ndarray] | None] = []  # each part and its derivative (None: 0)
+            for n, d in self._cpolys:
+                if not n.size:
+                    c.append(None)
+                    continue
+                nv, dv = np.polyval(n, s), np.polyval(d, s)
+                c.append((nv / dv, (np.polyval(np.polyder(n), s) * dv - nv * np.polyval(np.polyder(d), s)) / (dv * dv)))
+
+            def times(part: tuple[np.ndarray, np.ndarray] | None, h: np.ndarray,
+                      dh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                return (z, z) if part is None else (part[0] * h, part[1] * h + part[0] * dh)
+
+            for k, part in zip(("u", "a", "b"), c):
+                out[k], out["d" + k] = times(part, P, dP)
+            out["u"] = out["u"] + 1.0
+            for i, (R, through, W) in enumerate(self._factor_terms):
+                r, dr = R(w)
+                for k, part in zip(("nu", "na", "nb"), c):
+                    out[f"{k}{i}"], out[f"d{k}{i}"] = times(part, r, dr) if through else (
+                        (r, dr) if k == "nu" else (z, z))
+                out[f"W{i}"], out[f"dW{i}"] = W(w)
+        for k in out:
+            if k.startswith("d"):
+                out[k] = np.where(np.isfinite(out[k]), out[k], 0.0)
+        at0 = np.flatnonzero(w == 0.0)
+        if at0.size:
+            for k, t in self._terms.items():
+                out[k][at0], out["d" + k][at0] = t(w[at0])
+            for i, ct in enumerate(self._cterms):
+                for k, t in ct.items():
+                    out[f"{k}{i}"][at0], out[f"d{k}{i}"][at0] = t(w[at0])
         return out
 
     def values(self, w: np.ndarray) -> dict[str, np.ndarray]:
@@ -255,14 +297,14 @@ class FrequencyData:
         w = np.asarray(w, dtype=float)
         s = 1j * w
         z = np.zeros(s.shape, dtype=complex)
-        P = np.asarray(self.plant(s), dtype=complex).reshape(s.shape)
+        P = self._plant_axis(w)
         with np.errstate(divide="ignore", invalid="ignore"):  # s = 0 is replaced below
-            c0, cx, cy = (np.polyval(n, s) / np.polyval(d, s) if n.size else z for n, d in self._cpolys)
+            c0, cx, cy = (horner(s, n[::-1]) / horner(s, d[::-1]) if n.size else z for n, d in self._cpolys)
             out = {"u": 1.0 + c0 * P, "a": cx * P, "b": cy * P}
             for i, (R, through, W) in enumerate(self._factors):
-                r = np.asarray(R(s), dtype=complex).reshape(s.shape)
+                r = R(w)
                 out[f"nu{i}"], out[f"na{i}"], out[f"nb{i}"] = (c0 * r, cx * r, cy * r) if through else (r, z, z)
-                out[f"W{i}"] = np.asarray(W(s), dtype=complex).reshape(s.shape)
+                out[f"W{i}"] = W(w)
         at0 = np.flatnonzero(w == 0.0)
         if at0.size:
             s0 = s[at0]
@@ -347,9 +389,19 @@ class FrequencyData:
                 idx = idx[: _MAX_POINTS - self.omega.size]
             new = 0.5 * (self.omega[idx] + self.omega[idx + 1])
             nv = self._evaluate(new)
-            order = np.argsort(np.concatenate([self.omega, new]), kind="stable")
-            self.omega = np.concatenate([self.omega, new])[order]
-            self._vals = {k: np.concatenate([self._vals[k], nv[k]])[order] for k in self._vals}
+            # each midpoint goes right after its left neighbour: the merged order without a sort
+            n = self.omega.size
+            at_new = idx + np.arange(1, idx.size + 1)
+            at_old = np.arange(n) + np.searchsorted(idx, np.arange(n), side="left")
+
+            def merged(old: np.ndarray, fresh: np.ndarray) -> np.ndarray:
+                out = np.empty(n + fresh.size, dtype=old.dtype)
+                out[at_old] = old
+                out[at_new] = fresh
+                return out
+
+            self.omega = merged(self.omega, new)
+            self._vals = {k: merged(self._vals[k], nv[k]) for k in self._vals}
 
     def _curve_point(self, vals: dict[str, np.ndarray], i: int) -> tuple[float, float] | None:
         u, a, b = vals["u"][i], vals["a"][i], vals["b"][i]
@@ -389,20 +441,28 @@ class FrequencyData:
         finite = np.isfinite(mag[:-1]) & np.isfinite(mag[1:])
         return bad & finite & (h > 1e-12 * self.omega[1:])
 
+    def _magnitudes(self) -> dict[str, np.ndarray]:
+        """``|v|`` of every value and derivative on the current grid (made once per grid)."""
+        cached = getattr(self, "_mag_cache", None)
+        if cached is None or cached[0] is not self._vals:
+            cached = (self._vals, {k: np.abs(v) for k, v in self._vals.items()})
+            self._mag_cache = cached
+        return cached[1]
+
     def allowed_spacing(self, X: float, Y: float) -> np.ndarray:
         """Per grid column, the spacing :meth:`refine` accepts there for gains up to ``X, Y``:
         ``delta`` times the size of ``1 + L`` (and of each constraint's terms) over their exact
         derivative, as in :meth:`_violations` (``inf`` where nothing changes)."""
-        v = self._vals
-        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
-        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
+        v = self._magnitudes()
+        mag = v["u"] + X * v["a"] + Y * v["b"]
+        der = v["du"] + X * v["da"] + Y * v["db"]
         with np.errstate(divide="ignore", invalid="ignore"):
             h = self.delta * np.maximum(mag, self.r_min) / der
             for i, c in enumerate(self.constraints):
-                W = np.abs(v[f"W{i}"]) / c.gamma
-                dW = np.abs(v[f"dW{i}"]) / c.gamma
-                nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
-                nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
+                W = v[f"W{i}"] / c.gamma
+                dW = v[f"dW{i}"] / c.gamma
+                nmag = v[f"nu{i}"] + X * v[f"na{i}"] + Y * v[f"nb{i}"]
+                nder = v[f"dnu{i}"] + X * v[f"dna{i}"] + Y * v[f"dnb{i}"]
                 h = np.fmin(h, self.delta * np.maximum(np.maximum(W * nmag, mag), self.r_min) / (dW * nmag + W * nder))
         return np.where(np.isnan(h), np.inf, h)
 
@@ -486,6 +546,8 @@ class Columns:
     a: np.ndarray
     b: np.ndarray
     constraints: tuple[ConstraintColumns, ...]
+    #: what the scan derives from these columns alone (per constraint, per line), made once
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_constraints(self) -> int:
@@ -502,6 +564,11 @@ def columns_of(fd: FrequencyData) -> Columns:
 
 #: a grid smaller than this is never thinned (a distributed shaper's or a rational loop's grid is not)
 _THIN_ABOVE = 8000
+
+
+def thinnable(cols: Columns) -> bool:
+    """Can :func:`thin_columns` keep fewer than all columns (a large grid, and the frequency data's current one)?"""
+    return cols.n_grid >= _THIN_ABOVE and cols.data.omega.size == cols.n_grid
 
 
 def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray | None]:
@@ -522,7 +589,7 @@ def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray
     of its points.  The first and last grid columns and every limit column are kept.  Grids below ``_THIN_ABOVE`` columns are used whole.
     """
     n = cols.n_grid
-    if n < _THIN_ABOVE or cols.data.omega.size != n:  # small, or columns of an older grid: all of them
+    if not thinnable(cols):  # small, or columns of an older grid: all of them
         return cols, None
     h = cols.data.allowed_spacing(float(X), float(Y))
     step = np.diff(cols.omega) / np.fmin(h[:-1], h[1:])

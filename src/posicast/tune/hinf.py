@@ -7,8 +7,7 @@ With ``1 + L = u + kx a + ky b`` and a constraint channel's numerator
 column an interval (or two rays); the admissible set is the complement of their
 union (:func:`forbidden`, :func:`complement`).  The ends of the admissible
 intervals are extrema over frequency of one root of one quadratic: a
-:class:`Branch`, refined between grid columns by :func:`polish_ends` and
-:func:`exact_end`.
+:class:`Branch`, refined between grid columns in :mod:`~posicast.tune.refine`.
 """
 
 from __future__ import annotations
@@ -22,8 +21,7 @@ import numpy as np
 from .frequency import Columns
 
 __all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
-           "quadratic_root", "forbidden", "complement", "root_value", "root_values", "roots_at", "polish_ends",
-           "parabola_vertex", "exact_end", "forbidden_window"]
+           "quadratic_root", "forbidden", "complement", "line_forbidden"]
 
 _INF = math.inf
 
@@ -79,10 +77,11 @@ class ForbiddenPiece(NamedTuple):
 
 
 class Forbidden(NamedTuple):
-    """Forbidden intervals of ``ky`` on ``m`` lines over ``K`` (column, constraint, piece) triples.
+    """Forbidden intervals of ``ky`` on ``m`` lines, ``K`` entries each ((column, constraint, piece) triples,
+    or runs of them: :func:`forbidden`).
 
     ``lo, hi, col_lo, col_hi`` are (m, K): the ends and the columns they are
-    attributed to; ``constraint, lower_root, upper_root`` are (K,).
+    attributed to; ``constraint, lower_root, upper_root`` are (K,) (the same on every line) or (m, K).
     """
 
     lo: np.ndarray
@@ -192,17 +191,28 @@ def quadratic_root(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarray, 
 
 
 # ---------------------------------------------------------------------- over frequency, on lines
-def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
-              dU: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Replace each forbidden interval by the hull of its run of consecutive valid columns.
+class _Runs(NamedTuple):
+    """One entry per frequency run of a piece: its line, first column, hull ``[lo, hi]`` and the columns
+    of the hull's extremes (row-major: by line, then column)."""
+
+    row: np.ndarray
+    first: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    col_lo: np.ndarray
+    col_hi: np.ndarray
+
+
+def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray, dU: np.ndarray) -> _Runs:
+    """The hull of each forbidden interval's run of consecutive valid columns, one entry per run.
 
     Over a connected range of frequencies where the interval exists, the union
     of the intervals is the interval ``[min lo, max hi]`` (a continuous family
     of intervals with a connected parameter set), so the hull is the exact
     union, whatever the grid spacing; where the interval vanished between two
     grid points the hull forbids a little more, never less.  The grid and the
-    limit columns are separate runs.  Returns ``L, H`` and the columns of the
-    run's extremes (for the polish and the exact refinement).
+    limit columns are separate runs.  Each run is named by the columns of its
+    extremes (for the polish and the exact refinement).
 
     Two neighbouring columns belong to one run only where the grid resolves
     ``1 + L`` for the gains at the intervals' location: ``|dU| + |y| |db|``
@@ -210,56 +220,109 @@ def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray,
     stay below a quarter of the constraint radius.  Elsewhere (e.g. far out,
     where a delay turns the phase quickly between coarse points) the
     intervals are kept as they are.
+
+    Every column of a run would carry the same hull, so one entry stands for the run: the union, and
+    which interval bounds it, do not change, and with a lumped shaper's tens of thousands of columns
+    the complement's sort stays small (issue #15).
     """
     m, n = V.shape
-    cols_idx = np.broadcast_to(np.arange(n), (m, n))
     prev = np.zeros_like(V)
     prev[:, 1:] = V[:, :-1]
     if n > cols.n_grid:
         prev[:, cols.n_grid] = False
+    if "db" not in cols.cache:
+        cols.cache["db"] = np.abs(np.diff(cols.b))
     with np.errstate(invalid="ignore"):
-        y = np.abs(np.where(np.isfinite(L), L, H))
-        y = np.where(np.isfinite(y), y, _INF)
-        ymax = np.maximum(y[:, 1:], y[:, :-1])
-        change = dU + ymax * np.abs(np.diff(cols.b))[None, :]
+        y = np.where(np.isfinite(L), L, H)
+        np.abs(y, out=y)
+        y[~np.isfinite(y)] = _INF
+        change = np.maximum(y[:, 1:], y[:, :-1])
+        change *= cols.cache["db"][None, :]
+        np.add(dU, change, out=change)
     prev[:, 1:] &= change <= 0.25 * cols.data.r_min
-    start = V & ~prev
-    if not V.any():
-        return L, H, cols_idx.copy(), cols_idx.copy()
+    where = np.flatnonzero(V.ravel())
+    if not where.size:
+        e = np.zeros(0, dtype=int)
+        return _Runs(e, e, np.zeros(0), np.zeros(0), e, e)
     # runs are contiguous in the flattened valid entries: segment reductions with reduceat
-    Vf = V.ravel()
-    Lv, Hv, Cv = L.ravel()[Vf], H.ravel()[Vf], cols_idx.ravel()[Vf]
-    starts = np.flatnonzero(start.ravel()[Vf])
+    Lv, Hv, Cv = L.ravel()[where], H.ravel()[where], where % n
+    sv = ~prev.ravel()[where]
+    starts = np.flatnonzero(sv)
     lo = np.minimum.reduceat(Lv, starts)
     hi = np.maximum.reduceat(Hv, starts)
-    seg = np.cumsum(start.ravel()[Vf]) - 1
+    seg = np.cumsum(sv) - 1
     amin = np.minimum.reduceat(np.where(Lv == lo[seg], Cv, n), starts)
     amax = np.minimum.reduceat(np.where(Hv == hi[seg], Cv, n), starts)
-    outL, outH = L.copy(), H.copy()
-    cl, ch = cols_idx.copy(), cols_idx.copy()
-    outL.ravel()[Vf] = lo[seg]
-    outH.ravel()[Vf] = hi[seg]
-    cl.ravel()[Vf] = amin[seg]
-    ch.ravel()[Vf] = amax[seg]
-    return outL, outH, cl, ch
+    return _Runs(where[starts] // n, Cv[starts], lo, hi, amin, amax)
+
+
+def _parts(cols: Columns) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``Re u, Im u, Re a, Im a`` as contiguous arrays, made once per columns."""
+    if "parts" not in cols.cache:
+        cols.cache["parts"] = tuple(np.ascontiguousarray(p) for p in (cols.u.real, cols.u.imag, cols.a.real,
+                                                                      cols.a.imag))
+    return cols.cache["parts"]
+
+
+def _entries(lo: np.ndarray, hi: np.ndarray, col: np.ndarray) -> _Runs:
+    """Each non-empty entry (``lo < inf``) of a piece not joined over frequency, as a run of its own."""
+    row, j = np.nonzero(lo < _INF)
+    return _Runs(row, j, lo[row, j], hi[row, j], col[row, j], col[row, j])
+
+
+def _compact(m: int, parts: list[tuple[_Runs, int, int, int, int]]) -> Forbidden:
+    """The runs of every piece ``(runs, first column's index, constraint, lower root, upper root)`` as one
+    :class:`Forbidden` with a row per line, in the order of the pieces and columns, padded with empty
+    entries ``[inf, -inf]``."""
+    row = np.concatenate([r.row for r, *_ in parts])
+    order = np.lexsort((np.concatenate([r.first + off for r, off, *_ in parts]), row))
+    row = row[order]
+    count = np.bincount(row, minlength=m)
+    k = max(1, int(count.max()))
+    pos = np.arange(row.size) - np.repeat(np.cumsum(count) - count, count)
+
+    def fill(values: list[np.ndarray], pad: float) -> np.ndarray:
+        flat = np.concatenate(values)
+        out = np.full((m, k), pad, dtype=flat.dtype)
+        out[row, pos] = flat[order]
+        return out
+
+    def each(i: int) -> list[np.ndarray]:
+        return [np.full(r.row.size, p[i]) for r, *p in parts]
+
+    none = int(Root.INFINITE)
+    return Forbidden(fill([r.lo for r, *_ in parts], _INF), fill([r.hi for r, *_ in parts], -_INF),
+                     fill([r.col_lo for r, *_ in parts], 0), fill([r.col_hi for r, *_ in parts], 0),
+                     fill(each(1), 0), fill(each(2), none), fill(each(3), none))
 
 
 def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = True) -> Forbidden:
     """Forbidden ky-intervals for lines ``x`` (m,), over every column and constraint in ``which``.
 
-    Each (column, constraint) gives the pieces of :func:`forbidden_interval`;
-    with ``hull`` each piece is replaced by the hull of its frequency run
-    (:func:`_run_hull`).
+    Each (column, constraint) gives the pieces of :func:`forbidden_interval`.  With ``hull`` each piece
+    is replaced by the hull of its frequency runs (:func:`_run_hull`), one entry per run, and the
+    entries differ from line to line (``constraint`` and the roots too have shape (m, K)); without, there
+    is one entry per column and piece, the same on every line (``constraint`` and the roots: (K,)).
     """
     m = x.size
-    los, his, cl, ch, cons, lr, hr = [], [], [], [], [], [], []
+    los, his, cl, cons, lr, hr = [], [], [], [], [], []
+    runs: list[tuple[_Runs, int, int, int, int]] = []
+    offset = 0
     ncol = cols.u.size
     colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
     # 1 + L without ky, in real and imaginary parts (the same numbers as u + x a in complex arithmetic)
-    Ur = cols.u.real[None, :] + x[:, None] * cols.a.real[None, :]
-    Ui = cols.u.imag[None, :] + x[:, None] * cols.a.imag[None, :]
+    ur, ui, ar, ai = _parts(cols)
+    Ur = np.multiply(x[:, None], ar[None, :])
+    np.add(ur[None, :], Ur, out=Ur)
+    Ui = np.multiply(x[:, None], ai[None, :])
+    np.add(ui[None, :], Ui, out=Ui)
     U: np.ndarray | None = None
-    dU = np.hypot(np.diff(Ur, axis=1), np.diff(Ui, axis=1)) if hull else None
+    dU = None
+    if hull:  # |change of u + x a| between neighbouring columns
+        dU = np.subtract(Ur[:, 1:], Ur[:, :-1])
+        dUi = np.subtract(Ui[:, 1:], Ui[:, :-1])
+        np.hypot(dU, dUi, out=dU)
+        del dUi
     for ci in which:
         nu, na, nb, w2 = cols.constraints[ci]
         fixed = _fixed_numerator(cols, ci)
@@ -271,31 +334,41 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
             N = nu[None, :] + x[:, None] * na[None, :]
             pieces = [(pc, None) for pc in forbidden_interval(U, N, cols.b[None, :], nb[None, :], w2[None, :])]
         for (lo_, hi_, lroot, hroot, V), on in pieces:
+            first, offset = offset, offset + lo_.shape[1]
             if (V is not None and not V.any()) or (V is None and not np.any(lo_ <= hi_)):
                 continue  # empty everywhere on these lines (e.g. no A < 0 for an unweighted Ms bound)
-            if hull and V is not None:
-                lo_, hi_, c_lo, c_hi = _run_hull(cols, lo_, hi_, V, dU)
-            else:
-                c_lo = c_hi = colidx if on is None else colidx[:, on]
+            c_at = colidx if on is None else colidx[:, on]
+            if hull:
+                r = _run_hull(cols, lo_, hi_, V, dU) if V is not None else _entries(lo_, hi_, c_at)
+                runs.append((r, first, ci, int(lroot), int(hroot)))
+                continue
             los.append(lo_)
             his.append(hi_)
-            cl.append(c_lo)
-            ch.append(c_hi)
+            cl.append(c_at)
             cons.append(np.full(lo_.shape[1], ci))
             lr.append(np.full(lo_.shape[1], int(lroot)))
             hr.append(np.full(lo_.shape[1], int(hroot)))
+    if runs:
+        return _compact(m, runs)
     if not los:  # nothing forbidden anywhere: one empty piece keeps the shapes
-        los, his, cl, ch = [np.full((m, 1), _INF)], [np.full((m, 1), -_INF)], [np.zeros((m, 1), int)], \
-            [np.zeros((m, 1), int)]
+        los, his, cl = [np.full((m, 1), _INF)], [np.full((m, 1), -_INF)], [np.zeros((m, 1), int)]
         cons, lr, hr = [np.zeros(1, int)], [np.full(1, int(Root.INFINITE))], [np.full(1, int(Root.INFINITE))]
-    return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), np.concatenate(cl, axis=1),
-                     np.concatenate(ch, axis=1), np.concatenate(cons), np.concatenate(lr), np.concatenate(hr))
+    col = np.concatenate(cl, axis=1)
+    return Forbidden(np.concatenate(los, axis=1), np.concatenate(his, axis=1), col, col, np.concatenate(cons),
+                     np.concatenate(lr), np.concatenate(hr))
 
 
 def _fixed_numerator(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | None:
     """``(A, w2 |nu|^2)`` per column when constraint ``ci``'s numerator does not depend on the gains
     (``na = nb = 0``: a bound on ``S``, weighted or not), so that ``A = |b|^2 >= 0`` at every column
     (0 where ``b`` vanishes, e.g. the limit columns of a decaying ``b``); else None."""
+    key = ("fixed numerator", ci)
+    if key not in cols.cache:
+        cols.cache[key] = _fixed_numerator_of(cols, ci)
+    return cols.cache[key]
+
+
+def _fixed_numerator_of(cols: Columns, ci: int) -> tuple[np.ndarray, np.ndarray] | None:
     nu, na, nb, w2 = cols.constraints[ci]
     if np.any(na != 0) or np.any(nb != 0):
         return None
@@ -314,28 +387,38 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
     (``B = Re(U conj b)``, ``D = |U|^2 - w2 |nu|^2``; the same stable roots ``D / q`` and ``q / A``): the
     interval where ``A > 0`` (every column), and where ``A = 0`` the ray or everything (on those columns
     only, given as the second item; no ``A < 0`` here)."""
-    br, bi = b.real[None, :], b.imag[None, :]
+    # the same operations as in complex arithmetic, on as few fresh (m, columns) arrays as possible:
+    # with a lumped shaper's tens of thousands of columns, allocating them costs more than the arithmetic
+    br, bi = np.ascontiguousarray(b.real)[None, :], np.ascontiguousarray(b.imag)[None, :]
     A2, c2 = A[None, :], c[None, :]
-    B = Ur * br
-    B += Ui * bi
-    D = Ur * Ur
-    D += Ui * Ui
+    B = np.multiply(Ur, br)
+    tmp = np.multiply(Ui, bi)
+    B += tmp
+    D = np.multiply(Ur, Ur)
+    np.multiply(Ui, Ui, out=tmp)
+    D += tmp
     D -= c2
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        disc = B * B
-        disc -= A2 * D
-        q = np.sqrt(np.maximum(disc, 0.0))
-        q = np.where(B >= 0, q, -q)
+        disc = np.multiply(B, B)
+        np.multiply(A2, D, out=tmp)
+        disc -= tmp
+        q = np.maximum(disc, 0.0)
+        np.sqrt(q, out=q)
+        np.negative(q, out=q, where=B < 0)  # q = -(B + sign(B) sqrt(disc)); NaN B: not an interval below
         q += B
         np.negative(q, out=q)
-        r1 = D / q
+        r1 = np.divide(D, q, out=tmp)
         r1[q == 0] = 0.0
-        r2 = q / A2
-        pos = np.isfinite(D) & np.isfinite(B) & (A2 > 0) & (disc > 0)
-        lo = np.fmin(r1, r2)
+        pos = np.isfinite(D)
+        pos &= np.isfinite(B)
+        pos &= A2 > 0
+        pos &= disc > 0
+        r2 = np.divide(q, A2, out=q)
+        lo = np.fmin(r1, r2, out=disc)
         hi = np.fmax(r1, r2, out=r2)
-    lo[~pos] = _INF
-    hi[~pos] = -_INF
+    notpos = ~pos
+    lo[notpos] = _INF
+    hi[notpos] = -_INF
     out: list[tuple[ForbiddenPiece, np.ndarray | None]] = [(ForbiddenPiece(lo, hi, Root.SMALLER, Root.LARGER, pos),
                                                             None)]
     z = np.flatnonzero(A == 0)
@@ -351,6 +434,19 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
     return out
 
 
+def line_forbidden(cols: Columns, x: float) -> Forbidden:
+    """:func:`forbidden` on the line ``x`` over every column and constraint, without the hull: the few
+    lines the exact optimum visits are asked for again and again (the branches above and below, the
+    limit columns), so the last ones are kept with the columns."""
+    memo = cols.cache.setdefault("lines", {})
+    key = float(x)
+    if key not in memo:
+        if len(memo) >= 8:
+            memo.pop(next(iter(memo)))
+        memo[key] = forbidden(cols, np.array([key]), range(cols.n_constraints), hull=False)
+    return memo[key]
+
+
 #: What bounds each admissible interval of a line, below and above.
 Ends = list[tuple[IntervalEnd, IntervalEnd]]
 
@@ -361,6 +457,10 @@ def complement(f: Forbidden) -> list[tuple[np.ndarray, Ends]]:
     los = np.take_along_axis(f.lo, order, axis=1)
     his = np.take_along_axis(f.hi, order, axis=1)
     cm = np.maximum.accumulate(his, axis=1)
+    if f.constraint.ndim == 1:  # one entry per column, the same on every line
+        shape = f.lo.shape
+        f = f._replace(constraint=np.broadcast_to(f.constraint, shape), lower_root=np.broadcast_to(f.lower_root, shape),
+                       upper_root=np.broadcast_to(f.upper_root, shape))
     return [_line_complement(f, i, los[i], cm[i], order[i], his[i]) for i in range(f.lo.shape[0])]
 
 
@@ -376,12 +476,12 @@ def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: n
     def attr_hi(j: int) -> Branch | None:  # the interval whose hi is the running max at j
         k = int(np.argmax(hi_[: j + 1]))
         kk = oi[k]
-        return Branch(int(f.col_hi[i, kk]), int(f.constraint[kk]), int(f.upper_root[kk])) \
+        return Branch(int(f.col_hi[i, kk]), int(f.constraint[i, kk]), int(f.upper_root[i, kk])) \
             if math.isfinite(hi_[k]) else None
 
     def attr_lo(j: int) -> Branch | None:
         kk = oi[j]
-        return Branch(int(f.col_lo[i, kk]), int(f.constraint[kk]), int(f.lower_root[kk])) \
+        return Branch(int(f.col_lo[i, kk]), int(f.constraint[i, kk]), int(f.lower_root[i, kk])) \
             if math.isfinite(li[j]) else None
 
     iv: list[tuple[float, float]] = []
@@ -397,211 +497,3 @@ def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: n
         iv.append((ci[-1], _INF))
         ends.append((attr_hi(nvalid - 1), None))
     return np.array(iv, dtype=float).reshape(-1, 2), ends
-
-
-# ---------------------------------------------------------------------- one root between columns
-def root_values(cols: Columns, x: np.ndarray, col: np.ndarray, ci: np.ndarray, root: np.ndarray) -> np.ndarray:
-    """The quadratic's roots at grid columns, vectorised (NaN where the root does not exist)."""
-    out = np.full(x.shape, np.nan)
-    for c in np.unique(ci):
-        sel = ci == c
-        nu, na, nb, w2 = (arr[col[sel]] for arr in cols.constraints[int(c)])
-        u, a, b = cols.u[col[sel]], cols.a[col[sel]], cols.b[col[sel]]
-        out[sel] = quadratic_root(u + x[sel] * a, nu + x[sel] * na, b, nb, w2, root[sel])
-    return out
-
-
-def root_value(cols: Columns, x: float, col: int, ci: int, root: int) -> float:
-    """The quadratic's root ``root`` (0 smaller, 1 larger, 2 linear) at one column (NaN if none)."""
-    return float(root_values(cols, np.array([x]), np.array([col]), np.array([ci]), np.array([root]))[0])
-
-
-def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root: int) -> np.ndarray:
-    """The quadratic's root ``root`` at exact values ``vals`` (arrays over frequency)."""
-    w2 = np.abs(vals[f"W{ci}"]) ** 2 / cols.data.constraints[ci].gamma ** 2
-    return quadratic_root(vals["u"] + x * vals["a"], vals[f"nu{ci}"] + x * vals[f"na{ci}"], vals["b"],
-                          vals[f"nb{ci}"], w2, root)
-
-
-def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
-                upper: np.ndarray, rounds: int = 4, where: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Exact interval ends: the extremum over frequency of each end's root, refined between its
-    column's neighbours (vectorised over all ends).
-
-    An upper end of an admissible interval is the minimum over frequency of a
-    forbidden interval's lower root (``upper``); a lower end is a maximum.
-    Each round evaluates the exact frequency response at 9 points per end (one
-    call for all ends) and keeps the two intervals around the best point, so the
-    bracket shrinks 4x per round; the grid value stands where nothing better is
-    found.  (A parabola through three grid points, used before, can overshoot a
-    sharp minimum and make the region smaller than it is.)  With ``where``, also
-    the frequency of each end's extremum (NaN for the ends not polished).
-    """
-    idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
-    omega = np.full(values.shape, np.nan)
-    if not idx:
-        return (values, omega) if where else values
-    k = np.array(idx)
-    col = np.array([ends[i][0] for i in idx])
-    ci = np.array([ends[i][1] for i in idx])
-    rt = np.array([ends[i][2] for i in idx])
-    xs = x[k]
-    sign = np.where(upper[k], 1.0, -1.0)
-    lo = cols.omega[col - 1].astype(float)
-    hi = cols.omega[col + 1].astype(float)
-    best = sign * values[k]
-    best = np.where(np.isfinite(best), best, _INF)
-    best_w = cols.omega[col].astype(float)
-    t = np.linspace(0.0, 1.0, 9)
-    for _ in range(rounds):
-        w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
-        vals = cols.data.values(w.ravel())
-        f = np.full(w.shape, _INF)
-        for c in np.unique(ci):
-            sel = np.flatnonzero(ci == c)
-            rows = (sel[:, None] * 9 + np.arange(9)[None, :]).ravel()
-            w2 = np.abs(vals[f"W{c}"][rows]) ** 2 / cols.data.constraints[int(c)].gamma ** 2
-            r = quadratic_root(vals["u"][rows] + np.repeat(xs[sel], 9) * vals["a"][rows],
-                               vals[f"nu{c}"][rows] + np.repeat(xs[sel], 9) * vals[f"na{c}"][rows],
-                               vals["b"][rows], vals[f"nb{c}"][rows], w2, np.repeat(rt[sel], 9))
-            f[sel] = (np.repeat(sign[sel], 9) * r).reshape(-1, 9)
-        f = np.where(np.isfinite(f), f, _INF)
-        j = np.argmin(f, axis=1)
-        fj = f[np.arange(f.shape[0]), j]
-        wj = w[np.arange(w.shape[0]), j]
-        best_w = np.where(fj < best, wj, best_w)
-        best = np.minimum(best, fj)
-        step = (hi - lo) / 8.0
-        lo, hi = np.maximum(lo, wj - step), np.minimum(hi, wj + step)
-    out = values.copy()
-    out[k] = np.where(np.isfinite(best), sign * best, values[k])
-    if where:
-        omega[k] = best_w
-        return out, omega
-    return out
-
-
-def parabola_vertex(f0: float, f1: float, f2: float) -> float | None:
-    """The correction ``f1 - vertex`` of the parabola through three equally spaced samples around a
-    minimum ``f1``, or None where the curvature is rounding noise.
-
-    The correction is trusted only above rounding, and never beyond the samples'
-    own spread (in a tiny bracket the curvature is rounding noise).
-    """
-    curv = f0 - 2 * f1 + f2
-    if curv > 64 * np.finfo(float).eps * max(abs(f0), abs(f1), abs(f2), 1e-300):
-        return min((f2 - f0) ** 2 / (8 * curv), max(f0, f2) - f1)
-    return None
-
-
-def exact_end(cols: Columns, x: float, end: Branch, upper: bool, rounds: int = 7) -> tuple[float, float]:
-    """Exact extremum over frequency of one interval end: ``(ky, omega)``.
-
-    Zooms in on the extremum between the column's neighbours: each round
-    evaluates the exact frequency response at 9 points and keeps the two
-    intervals around the best (the bracket shrinks 4x per round), then a
-    parabola through the last three points.
-    """
-    col, ci, root = end
-    if col >= cols.n_grid:  # a limit column: no frequency to refine
-        return root_value(cols, x, col, ci, root), math.inf
-    lo = float(cols.omega[max(col - 1, 0)])
-    hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
-    sign = 1.0 if upper else -1.0
-    base = root_value(cols, x, col, ci, root)
-    best_v, best_w = (sign * base if math.isfinite(base) else math.inf), float(cols.omega[col])
-    if not hi > lo:
-        return base, best_w
-    for _ in range(rounds):
-        w = np.linspace(lo, hi, 9)
-        f = sign * roots_at(cols, x, cols.data.values(w), ci, root)
-        f = np.where(np.isfinite(f), f, math.inf)
-        k = int(np.argmin(f))
-        if f[k] < best_v:
-            best_v, best_w = float(f[k]), float(w[k])
-        lo, hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
-        if 0 < k < 8 and np.all(np.isfinite(f[k - 1 : k + 2])):
-            f0, f1, f2 = f[k - 1 : k + 2]
-            corr = parabola_vertex(f0, f1, f2)
-            if corr is not None:
-                vertex = f1 - corr
-                if vertex < best_v:
-                    h = w[1] - w[0]
-                    best_v, best_w = float(vertex), float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
-    return sign * best_v, best_w
-
-
-# ---------------------------------------------------------------------- a window narrower than the grid
-def _interval_width(cols: Columns, x: float, ci: int, ws: np.ndarray) -> np.ndarray:
-    """``hi - lo`` of constraint ``ci``'s forbidden interval at each frequency (-1 where it does not exist)."""
-    ws = np.asarray(ws, dtype=float)
-    ok = ws > 0
-    res = np.full(ws.shape, -1.0)
-    if np.any(ok):
-        vals = cols.data.values(ws[ok])
-        lo = roots_at(cols, x, vals, ci, 0)
-        hi = roots_at(cols, x, vals, ci, 1)
-        res[ok] = np.where(np.isfinite(lo) & np.isfinite(hi), hi - lo, -1.0)
-    return res
-
-
-def _window_edges(cols: Columns, x: float, ci: int, w: float, steps: np.ndarray) -> list[float]:
-    """The frequencies just inside both edges of the window around ``w`` where the interval exists.
-
-    A geometric walk outward from ``w`` brackets each edge; each open bracket
-    (inside, outside) is then narrowed 32-fold per round: 4 rounds put the edge
-    within 1e-6 of the walk's last step, far below the 801-point sampling of the
-    window in :func:`forbidden_window`.
-    """
-    walk = _interval_width(cols, x, ci, np.concatenate([w - steps, w + steps])).reshape(2, -1)
-    brackets: list[tuple[float, float | None]] = []
-    for side, row in zip((-1.0, 1.0), walk):
-        bad = np.flatnonzero(~(row > 0))
-        if bad.size == 0:
-            brackets.append((w + side * steps[-1], None))
-            continue
-        k = int(bad[0])
-        brackets.append((w + side * steps[k - 1] if k > 0 else w, w + side * steps[k]))
-    for _ in range(4):
-        live = [k for k, (_, o) in enumerate(brackets) if o is not None]
-        if not live:
-            break
-        pts = np.concatenate([np.linspace(brackets[k][0], brackets[k][1], 33)[1:] for k in live])
-        wd = _interval_width(cols, x, ci, pts).reshape(len(live), 32)
-        for r, k in enumerate(live):
-            inside, outside = brackets[k]
-            grid = np.linspace(inside, outside, 33)
-            bad = np.flatnonzero(~(wd[r] > 0))
-            j = int(bad[0]) if bad.size else 31
-            brackets[k] = (float(grid[j]), float(grid[j + 1]))
-    return [inside for inside, _ in brackets]
-
-
-def forbidden_window(cols: Columns, x: float, w: float) -> list[tuple[int, tuple[float, float]]]:
-    """Exact union of each constraint's forbidden ``ky`` intervals over the frequency window around ``w``.
-
-    At a crossing of the D-decomposition curve the forbidden interval exists in
-    a window of frequencies (possibly far narrower than the grid), and its
-    centre can sweep a long way across it (large gains).  The window's edges
-    (where the quadratic's discriminant vanishes) are bracketed by a geometric
-    walk outward from ``w`` and narrowed by vectorised subdivision; the window is
-    then sampled densely, and the union is the hull ``[min lo, max hi]`` (a
-    continuous family of intervals over a connected window).  Every stage
-    evaluates the exact frequency response at many frequencies in one call.
-    Returns ``(constraint, (lo, hi))`` for each constraint forbidding anything at ``w``.
-    """
-    out = []
-    # offsets of the outward walk: (2^(k+1) - 1) 1e-6 w, k = 0..59, on both sides of w
-    steps = (2.0 ** np.arange(1, 61) - 1.0) * 1e-6 * w
-    for ci in range(cols.n_constraints):
-        if not _interval_width(cols, x, ci, np.array([w]))[0] > 0:
-            continue
-        edges = _window_edges(cols, x, ci, w, steps)
-        ww = np.linspace(min(edges), max(edges), 801)
-        vals = cols.data.values(ww)
-        lo = roots_at(cols, x, vals, ci, 0)
-        hi = roots_at(cols, x, vals, ci, 1)
-        ok = np.isfinite(lo) & np.isfinite(hi)
-        if np.any(ok):
-            out.append((ci, (float(lo[ok].min()), float(hi[ok].max()))))
-    return out

@@ -21,10 +21,12 @@ from scipy.optimize import minimize_scalar
 
 from ..core.transfer import TransferFunction
 from ..spectra.rootfinder import RootFindingError
+from .axis import OnAxis
 from .branches import BranchTracker, active_branches, exact_bottom, exact_top, is_tracked
 from .cells import interval_point
 from .family import ControllerFamily
-from .hinf import Branch, Cut, IntervalEnd, exact_end
+from .hinf import Branch, Cut, IntervalEnd
+from .refine import exact_end
 from .regions import Region, best_piece
 from .result import TuningResult
 from .scan import LineData, Problem, scan_lines
@@ -238,7 +240,12 @@ def _probe_top(problem: Problem, region: Region, i: int, x: float) -> Probe:
 
     Pieces are taken best-first; the first stable one decides.
     """
-    ln = scan_lines(problem, np.array([x]))[0]
+    return _probe_line(problem, region, i, scan_lines(problem, np.array([x]))[0])
+
+
+def _probe_line(problem: Problem, region: Region, i: int, ln: LineData) -> Probe:
+    """:func:`_probe_top` on the freshly scanned line ``ln``."""
+    x = ln.x
     ref = region.lines[i]
     cells = region.cells
     for j in range(ln.n_segments):
@@ -303,8 +310,9 @@ def _bracket_branches(problem: Problem, region: Region, anchor: Anchor, lo_x: fl
     uppers: list[Branch] = [anchor.end]  # type: ignore[list-item]  # a Branch: the caller checked
     lowers: list[Branch] = []
     cols = problem.columns
-    for xs in np.unique(np.concatenate([np.linspace(lo_x, hi_x, 5), [anchor.x]])):
-        ys, _, bs = _probe_top(problem, region, anchor.line, float(xs))
+    xs_all = np.unique(np.concatenate([np.linspace(lo_x, hi_x, 5), [anchor.x]]))
+    for xs, ln in zip(xs_all, scan_lines(problem, xs_all)):  # the fresh lines in one scan
+        ys, _, bs = _probe_line(problem, region, anchor.line, ln)
         if not (math.isfinite(ys) and ys > bs):
             continue  # closed here: the branches that close it are found where it is open
         for br in active_branches(cols, float(xs), ys, bs, band=0.5):
@@ -436,7 +444,8 @@ def _search_step(problem: Problem, region: Region, anchor: Anchor, s: _Search, r
 def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> tuple[float, float]:
     """``max |tf(j omega)|``: every grid local maximum within 2 % of the top is refined between its
     neighbours (an optimal design often has two equal peaks); limit values count as omega = inf."""
-    mag = np.abs(np.asarray(tf.freqresp(omega)))
+    H = OnAxis(tf)  # the numbers tf.freqresp gives, without its per-call checks
+    mag = np.abs(H(np.asarray(omega, dtype=float)))
     mag = np.where(np.isfinite(mag), mag, 0.0)
     top = float(mag.max())
     left = np.concatenate([[-np.inf], mag[:-1]])
@@ -446,7 +455,7 @@ def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> 
         lo, hi = omega[max(i - 1, 0)], omega[min(i + 1, omega.size - 1)]
         if hi <= lo:
             continue
-        res = minimize_scalar(lambda w: -abs(tf(1j * w)), bounds=(lo, hi), method="bounded",
+        res = minimize_scalar(lambda w: -abs(H(np.array([w]))[0]), bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-12 * max(hi, 1.0)})
         if -res.fun > best:
             best, where = float(-res.fun), float(res.x)

@@ -32,8 +32,9 @@ from ..loops import Loop
 from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
-from .frequency import Columns, FrequencyData, columns_of, thin_columns
-from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, forbidden_window, polish_ends
+from .frequency import Columns, FrequencyData, columns_of, thin_columns, thinnable
+from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden
+from .refine import forbidden_window, polish_ends
 
 __all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "intersect", "subtract"]
 
@@ -180,8 +181,9 @@ class LineData:
         """Uncertainty of the break at ``value`` (0 for exact breaks and infinite ends)."""
         if not math.isfinite(value) or self.breaks.size == 0:
             return 0.0
-        k = int(np.argmin(np.abs(self.breaks - value)))
-        return float(self.break_err[k]) if self.breaks[k] == value and self.break_err.size else 0.0
+        k = int(np.searchsorted(self.breaks, value))  # the breaks are sorted: the first equal one, if any
+        return float(self.break_err[k]) if k < self.breaks.size and self.breaks[k] == value and \
+            self.break_err.size else 0.0
 
     def segment_bounds(self, j: int) -> tuple[float, float]:
         lo = -_INF if j == 0 else float(self.breaks[j - 1])
@@ -235,11 +237,12 @@ def intersect(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
     """Compute :class:`LineData` for each ``x`` in ``xs`` (vectorised over frequency, in blocks of lines).
 
-    The lines are taken in groups of similar ``|x|`` (a decade each).  A group's
-    H-infinity intervals are computed on the grid columns its gains need over the
-    whole ``ky`` window (:func:`~posicast.tune.frequency.thin_columns`: with a lumped
-    shaper the grid is dense only where ``|L|`` is large for those gains); its
-    D-decomposition crossings on the whole grid.
+    On a grid that can be thinned, the lines are taken in groups of similar ``|x|``
+    (a decade each).  A group's H-infinity intervals are computed on the grid
+    columns its gains need over the whole ``ky`` window
+    (:func:`~posicast.tune.frequency.thin_columns`: with a lumped shaper the grid is
+    dense only where ``|L|`` is large for those gains); its D-decomposition
+    crossings on the whole grid.  Otherwise every line needs every column: one group.
     """
     cols = problem.columns
     xs = np.asarray(xs, dtype=float)
@@ -250,6 +253,8 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
         decade = np.floor(np.log10(mag))  # -inf at x = 0: those lines join the lowest decade
     finite = np.isfinite(decade)
     decade = np.where(finite, decade, float(decade[finite].min()) if finite.any() else 0.0)
+    if not thinnable(cols):  # every line needs every column: one group (the same numbers, fewer calls)
+        decade = np.zeros_like(decade)
     for d in np.unique(decade):
         group = np.flatnonzero(decade == d)
         sub, sel = thin_columns(cols, float(mag[group].max()), y_top)
@@ -289,7 +294,7 @@ def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.nd
 
     On thinned columns (``sel`` not None) each end is then named by the whole grid's column
     nearest to its extremum and polished again between that grid's neighbours (as on the whole
-    grid), so that later refinements (:func:`~posicast.tune.hinf.exact_end`) bracket it there too.
+    grid), so that later refinements (:func:`~posicast.tune.refine.exact_end`) bracket it there too.
     """
     flat_ends = [e for _, ends in total for pair in ends for e in pair]
     flat_x = np.concatenate([np.full(2 * len(ends), x) for x, (_, ends) in zip(xb, total)])
