@@ -277,9 +277,14 @@ def _levenberg_marquardt_batch(evaluate: Callable[[np.ndarray], Batch], X0: np.n
         active[up[done]] = False
         go = np.flatnonzero(improved)[~done]
         lam[idx[go]] = np.maximum(lam[idx[go]] / 5.0, 1e-12)
+        by_source: dict[int, tuple[Batch, list[int], list[int]]] = {}
         for i in go:
             bn, row = source[i]  # type: ignore[misc]
-            J[idx[i]] = bn.jacobian([row])[0]
+            entry = by_source.setdefault(id(bn), (bn, [], []))
+            entry[1].append(int(idx[i]))
+            entry[2].append(row)
+        for bn, targets, rows in by_source.values():
+            J[targets] = bn.jacobian(rows)
     return X, cost
 
 

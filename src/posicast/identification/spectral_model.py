@@ -392,12 +392,18 @@ class Batch:
         self._G: np.ndarray | None = None
 
     def jacobian(self, rows: Sequence[int] | np.ndarray) -> np.ndarray:
-        """The Jacobians ``(len(rows), bins, 2 m)`` of the chosen rows along their ``m`` free poles."""
+        """The Jacobians ``(len(rows), bins, 2 m)`` of the chosen rows along their ``m`` free poles (Kaufman's
+        columns, as :meth:`SpectralModel._pole_jacobian` row by row)."""
+        model, rows = self.model, np.asarray(rows, dtype=int)
+        C, F, ns, k = self.r.shape[0], model.f.size, model.nsub, self.k
         if self._G is None:
-            C = self.r.shape[0]
-            self._G = self.model._gradients(self.free).reshape(C, -1, self.inv_den.shape[1])
-        return np.stack([self.model._pole_jacobian(self.bases[c], self.inv_den[c], self._G[c], self.k)
-                         for c in rows]).reshape(len(rows), self.r.shape[1], -1)
+            self._G = model._gradients(self.free).reshape(C, -1, F, ns)
+        Q = np.stack([self.bases[c].Q for c in rows]) if rows.size > 1 else self.bases[rows[0]].Q[None]
+        coef = np.stack([(self.bases[c].pinv @ self.bases[c].proj) / self.bases[c].scale for c in rows])
+        h = (coef[:, :k] @ model._fixed_columns(k).reshape(F * ns, k).T) * self.inv_den[rows]
+        D = np.einsum("cgbs,cbs->cbg", self._G[rows], h.reshape(-1, F, ns))
+        D *= -model.weights[:, None]
+        return -(D - Q @ (Q.transpose(0, 2, 1) @ D))
 
 
 @functools.lru_cache(maxsize=None)
