@@ -56,7 +56,8 @@ def test_qr_basis_is_the_svd_projection(spectrum):
         b = model._basis(A, np.ones(A.shape[1]))
         U, sv, _ = np.linalg.svd(A, full_matrices=False)
         U = U[:, sv > 1e-12 * sv[0]]
-        assert b.Q.shape[1] == U.shape[1] == min(A.shape[1], As.shape[1])
+        assert U.shape[1] == As.shape[1] and b.Q.shape == A.shape  # the repeated column: a zero column of Q
+        assert np.linalg.matrix_rank(b.Q) == U.shape[1]
         assert np.max(np.abs(b.Q @ b.proj - U @ (U.T @ y))) < 1e-12 * np.max(np.abs(y))
         coef = b.pinv @ b.proj
         ref = np.linalg.lstsq(A, y, rcond=1e-12)[0]

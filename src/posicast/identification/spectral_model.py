@@ -146,8 +146,9 @@ class _Poles(NamedTuple):
 
 
 class _Basis(NamedTuple):
-    """One linear solve: an orthonormal basis ``Q`` of the weighted, scaled columns, ``Q^T y``, the map from
-    ``Q^T y`` to the scaled coefficients, and the column scales (coefficients ``pinv @ proj / scale``)."""
+    """One linear solve: an orthonormal basis ``Q`` of the weighted, scaled columns (one column per design
+    column; zero columns for directions a rank-deficient design lacks), ``Q^T y``, the map from ``Q^T y`` to the
+    scaled coefficients, and the column scales (coefficients ``pinv @ proj / scale``)."""
 
     Q: np.ndarray
     proj: np.ndarray
@@ -294,9 +295,11 @@ class SpectralModel:
                     Q = lapack.dorgqr(qr, tau)[0]
                     return _Basis(Q, Q.T @ y, Rinv, scale)
         U, sv, Vt = np.linalg.svd(As, full_matrices=False)
-        keep = sv > 1e-12 * sv[0]
-        U, sv, Vt = U[:, keep], sv[keep], Vt[keep]
-        return _Basis(U, U.T @ y, Vt.T / sv, scale)
+        drop = sv <= 1e-12 * sv[0]  # the truncated directions: zero columns, so every basis has k columns
+        U[:, drop] = 0.0
+        pinv = Vt.T / np.where(drop, 1.0, sv)
+        pinv[:, drop] = 0.0
+        return _Basis(U, U.T @ y, pinv, scale)
 
     def _pole_jacobian(self, b: _Basis, inv_den: np.ndarray, G: np.ndarray, k: int) -> np.ndarray:
         """Kaufman's columns ``-P_perp W d(A c)/d theta`` for the gradient rows ``G`` (``(m, sub-points)``).
