@@ -37,7 +37,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from .. import _validate as v
-from .base import Firmware, Setting, ShaperType, vibration_grid
+from .base import Firmware, Setting, ShaperType, unchecked_vibration_grid
 
 __all__ = ["Klipper", "KLIPPER_TEST_DAMPING", "remaining_vibrations", "firmware_vibrations", "KlipperPick",
            "klipper_recommendation"]
@@ -280,7 +280,7 @@ def firmware_vibrations(A: np.ndarray, T: np.ndarray, datasets: list[tuple[np.nd
     worst = np.zeros(np.atleast_2d(T).shape[0])
     for bins, psd in datasets:
         b, p, total = _above_threshold(bins, psd)
-        V = vibration_grid(A, T, b, np.asarray(test_damping))  # [F, bins, zeta]
+        V = unchecked_vibration_grid(A, T, b, np.asarray(test_damping))  # [F, bins, zeta]
         for j in range(V.shape[2]):
             worst = np.maximum(worst, np.sum(np.maximum(V[:, :, j] * p - p.max() * _VTOL, 0.0), axis=-1) / total)
     return worst

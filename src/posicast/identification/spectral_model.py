@@ -264,8 +264,9 @@ class SpectralModel:
         _, ew, en = self._weighted()
         lead = inv_den.shape[:-1]
         A = np.empty(lead + (F, k + ew.shape[1]))
-        modal = np.matmul(inv_den.reshape(lead + (F, 1, ns)), self._fixed_columns(k))
-        np.multiply(modal[..., 0, :], self._weights[:, None], out=A[..., :k])
+        # per bin, (designs, nsub) @ (nsub, k): one small product per bin, not one per bin and design
+        modal = np.matmul(inv_den.reshape(-1, F, ns).transpose(1, 0, 2), self._fixed_columns(k))  # (F, C, k)
+        np.multiply(modal.transpose(1, 0, 2).reshape(lead + (F, k)), self._weights[:, None], out=A[..., :k])
         A[..., k:] = ew
         scale = np.empty(lead + (k + ew.shape[1],))
         scale[..., :k] = np.sqrt(np.einsum("...bk,...bk->...k", A[..., :k], A[..., :k]))
