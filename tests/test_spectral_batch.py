@@ -99,3 +99,13 @@ def test_vibration_grid_is_the_formula(version):
         ref = np.abs(np.einsum("fi,fki->fk", A[None, :] / A.sum(), np.exp(s.reshape(-1)[None, :, None] * d[:, None, :])))
         V = vibration_grid(A, T, bins, zetas)
         assert np.max(np.abs(V.reshape(ref.shape) - ref)) < 2e-5  # float32 phases up to ~130 rad: ~1e-5
+
+
+def test_flat_spectrum_refusal_names_the_lowest_bin(tmp_path):
+    """A flat spectrum is explained exactly: every bin's excess is 1 to rounding, and the refusal names the
+    lowest bin (not whichever bin rounding favours)."""
+    flat = tmp_path / "resonances_x_flat.csv"
+    flat.write_text("freq,psd_x,psd_y,psd_z,psd_xyz\n" + "".join(
+        f"{1.5625 * k:.1f},1.000e+03,1.000e+03,1.000e+03,3.000e+03\n" for k in range(130)))
+    with pytest.raises(posicast.identification.NoModeFound, match=r"largest excess 1x at 6\.2 Hz"):
+        posicast.calibrate(flat)

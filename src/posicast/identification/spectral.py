@@ -290,7 +290,13 @@ def _levenberg_marquardt_batch(evaluate: Callable[[np.ndarray], Batch], X0: np.n
 
 def _solve_rows(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``M[c] x[c] = rhs[c]`` for every row; ``ok`` is False where ``M[c]`` is singular (``np.linalg.solve``
-    would raise)."""
+    would raise).  2 x 2 systems (a screened pole) by Cramer's rule."""
+    if M.shape[1] == 2:
+        a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+        det = a * d - b * c
+        ok = np.isfinite(det) & (det != 0)
+        det = np.where(ok, det, 1.0)
+        return np.stack([(d * rhs[:, 0] - b * rhs[:, 1]) / det, (a * rhs[:, 1] - c * rhs[:, 0]) / det], axis=1), ok
     try:
         return np.linalg.solve(M, rhs[:, :, None])[:, :, 0], np.ones(M.shape[0], dtype=bool)
     except np.linalg.LinAlgError:
@@ -589,7 +595,7 @@ def _unresolved(model: SpectralModel, mode: Mode, i: int, edges: list[bool]) -> 
 
 def _no_mode_message(model: SpectralModel, M0: np.ndarray, cells: float) -> str:
     ratio = model.P / np.maximum(M0, 1e-300)
-    i = int(np.argmax(ratio))
+    i = int(np.argmax(ratio >= (1.0 - 1e-9) * np.max(ratio)))  # ties to rounding (a flat spectrum): the lowest bin
     return (f"no resonance found in {model.f[0]:.1f}-{model.f[-1]:.1f} Hz: the spectrum is explained by the "
             f"excitation and the noise floor (largest excess {ratio[i]:.2g}x at {model.f[i]:.1f} Hz is within "
             f"noise after {cells:.0f} frequency cells)")
