@@ -308,11 +308,16 @@ def real_corpus(comp) -> None:
           "smoothing | posicast's worst case: Klipper's pick -> posicast's line | verdict |")
     print("|---|---|---|---|---|---|")
     n_pass = n = 0
+    cpu = {"klipper": 0.0, "posicast": 0.0}  # CPU seconds over the corpus (issue #15: the demo calibrates it)
     for path in sorted(real.glob("*.csv")):
+        t0 = time.process_time()
         r = comp.calibrate([path])
+        t1 = time.process_time()
+        cpu["klipper"] += t1 - t0
         k = r.recommended
         try:
             cal = _posicast(path)
+            cpu["posicast"] += time.process_time() - t1
         except Exception as exc:  # noqa: BLE001 -- a crash is a row of the table
             print(f"| {path.name} | {k.name} @ {k.freq:.1f}: {k.vibrations_pct:.1f}, {k.smoothing:.3f} | "
                   f"CRASH {type(exc).__name__}: {exc} | | | FAIL |")
@@ -329,6 +334,9 @@ def real_corpus(comp) -> None:
               f"{line[0]} @ {line[1]:.1f}, damping {line[2]:.3f} | {ev.vibrations_pct:.1f}, {ev.smoothing:.3f} | "
               f"{worst} | {'PASS' if ok else 'FAIL'} |")
     print(f"\n{n_pass} of {n} real files pass issue #12 acceptance 1")
+    print(f"\nCPU over the {n} real files (one run each, after the 60 s log's warm-up): Klipper pipeline "
+          f"{cpu['klipper']:.2f} s, posicast.calibrate {cpu['posicast']:.2f} s, posicast / Klipper "
+          f"{cpu['posicast'] / max(cpu['klipper'], 1e-9):.2f}")
 
 
 if __name__ == "__main__":

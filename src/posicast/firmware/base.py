@@ -214,6 +214,21 @@ def vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.nda
         raise ValueError("zetas must be damping ratios in [0, 1)")
     v.refuse_large(16.0 * T.size * bins.size * zetas.size, 2e9, "vibration_grid's exponentials",
                    "pass fewer shapers, bins or damping ratios", "bytes")
+    return _vibration_grid(A, T, bins, zetas)
+
+
+def unchecked_vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.ndarray) -> np.ndarray:
+    """:func:`vibration_grid` without its argument checks, for callers whose shapers and bins are already
+    valid (a firmware's own designs on a measured spectrum's bins): the same numbers, bit for bit."""
+    A = np.asarray(A, dtype=float)
+    T = np.atleast_2d(np.asarray(T, dtype=float))
+    A = np.broadcast_to(A / A.sum(axis=-1, keepdims=True), T.shape)
+    return _vibration_grid(A, T, np.asarray(bins, dtype=float), np.asarray(zetas, dtype=float))
+
+
+def _vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.ndarray) -> np.ndarray:
+    """:func:`vibration_grid` of checked arrays: ``A`` and ``T`` ``[n_shapers, n_impulses]`` (``A`` summing to
+    1 per row), ``bins`` and ``zetas`` 1-D and valid."""
     w = 2.0 * math.pi * bins[:, None]
     z = zetas[None, :]
     sigma = (z * w).ravel()  # [bins * zetas]
@@ -222,13 +237,30 @@ def vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.nda
     # single precision while the phases stay under 1e4 rad (error < 1e-3 rad), double beyond; real exp,
     # cos and sin (vectorised in numpy for float32, unlike the complex exp)
     real = np.float32 if float(np.max(np.abs(s))) * float(np.max(Tn - T, initial=0.0)) < 1e4 else np.float64
-    D = (T - Tn).astype(real)[:, None, :]  # [shapers, 1, impulses], <= 0
-    decay = np.exp(sigma.astype(real)[None, :, None] * D)
-    phase = (s.imag.astype(real))[None, :, None] * D
+    D = (T - Tn).astype(real)  # [shapers, impulses], <= 0
     Ar = A.astype(real)
-    re = np.einsum("fki,fi->fk", decay * np.cos(phase), Ar)
-    im = np.einsum("fki,fi->fk", decay * np.sin(phase), Ar)
-    S = np.hypot(re, im)  # [shapers, bins*zetas]
+    # the exponentials laid out [shapers, impulses, bins * zetas] (the long axis last: numpy's vector loops,
+    # issue #15), then summed over the impulses as [shapers, bins * zetas, impulses].  The latest impulse
+    # (D = 0 when every shaper ends with it) contributes e^0 cos 0 = 1 and e^0 sin 0 = 0 exactly: its
+    # exponentials are not computed.  Same terms, same sums: the same numbers as one exponential per term.
+    n = D.shape[1]
+    m = n - 1 if n > 1 and not np.any(D[:, -1]) else n
+    Dm = D[:, :m, None]
+    decay = Dm * sigma.astype(real)[None, None, :]
+    np.exp(decay, out=decay)
+    phase = Dm * s.imag.astype(real)[None, None, :]
+    full = np.empty((D.shape[0], s.size, n), real)  # reused: few large temporaries
+    full[:, :, m:] = 1.0
+    x = np.cos(phase)
+    x *= decay
+    full[:, :, :m] = x.transpose(0, 2, 1)
+    terms = [np.einsum("fki,fi->fk", full, Ar)]
+    x = np.sin(phase, out=phase)
+    x *= decay
+    full[:, :, :m] = x.transpose(0, 2, 1)
+    full[:, :, m:] = 0.0
+    terms.append(np.einsum("fki,fi->fk", full, Ar))
+    S = np.hypot(*terms)  # [shapers, bins*zetas]
     return S.astype(float).reshape(T.shape[0], np.size(bins), np.size(zetas))
 
 

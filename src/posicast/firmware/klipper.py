@@ -32,11 +32,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
 from .. import _validate as v
-from .base import Firmware, Setting, ShaperType, vibration_grid
+from .base import Firmware, Setting, ShaperType, unchecked_vibration_grid
 
 __all__ = ["Klipper", "KLIPPER_TEST_DAMPING", "remaining_vibrations", "firmware_vibrations", "KlipperPick",
            "klipper_recommendation"]
@@ -279,7 +280,7 @@ def firmware_vibrations(A: np.ndarray, T: np.ndarray, datasets: list[tuple[np.nd
     worst = np.zeros(np.atleast_2d(T).shape[0])
     for bins, psd in datasets:
         b, p, total = _above_threshold(bins, psd)
-        V = vibration_grid(A, T, b, np.asarray(test_damping))  # [F, bins, zeta]
+        V = unchecked_vibration_grid(A, T, b, np.asarray(test_damping))  # [F, bins, zeta]
         for j in range(V.shape[2]):
             worst = np.maximum(worst, np.sum(np.maximum(V[:, :, j] * p - p.max() * _VTOL, 0.0), axis=-1) / total)
     return worst
@@ -302,12 +303,28 @@ def _above_threshold(bins: np.ndarray, psd: np.ndarray) -> tuple[np.ndarray, np.
 def klipper_scan(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
                  datasets: list[tuple[np.ndarray, np.ndarray]]) -> list[KlipperPick]:
     """Every frequency of ``freqs`` for one type at one design damping, scored as Klipper scores it."""
-    A, T1 = st.impulses(1.0, damping)
-    T = fw.times(T1[None, :] / np.asarray(freqs, dtype=float)[:, None])  # what the firmware runs (Marlin: 1 ms)
-    vib = firmware_vibrations(A, T, datasets)
-    sm, ma = fw.smoothing(A, T), fw.max_accel(A, T)
-    return [KlipperPick(Setting(fw, st, float(F), damping), float(vb), float(s), float(m))
-            for F, vb, s, m in zip(freqs, vib, sm, ma)]
+    return _Scan(fw, st, damping, np.asarray(freqs, dtype=float), datasets).picks(range(len(freqs)))
+
+
+class _Scan:
+    """One type at one design damping over a frequency grid, as arrays (Klipper's remaining vibrations,
+    smoothing, max_accel); a :class:`KlipperPick` is made only for the settings asked for (issue #15: the
+    tool scans ~650 frequencies per type and keeps one)."""
+
+    def __init__(self, fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
+                 datasets: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        A, T1 = st.impulses(1.0, damping)
+        T = fw.times(T1[None, :] / freqs[:, None])  # what the firmware runs (Marlin: 1 ms)
+        self.fw, self.st, self.damping, self.freqs = fw, st, damping, freqs
+        self.vib = firmware_vibrations(A, T, datasets)
+        self.sm, self.ma = np.asarray(fw.smoothing(A, T)), np.asarray(fw.max_accel(A, T))
+
+    def pick(self, i: int) -> KlipperPick:
+        return KlipperPick(Setting(self.fw, self.st, float(self.freqs[i]), self.damping), float(self.vib[i]),
+                           float(self.sm[i]), float(self.ma[i]))
+
+    def picks(self, idx: Sequence[int]) -> list[KlipperPick]:
+        return [self.pick(int(i)) for i in idx]
 
 
 def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.ndarray]], *,
@@ -338,10 +355,9 @@ def klipper_recommendation(fw: Firmware, datasets: list[tuple[np.ndarray, np.nda
                 chosen.score * 1.05 < best.score and chosen.smoothing * 1.1 < best.smoothing):
             best = chosen
         if master:
-            for r in res:
-                if r.vibrations < best.vibrations and r.smoothing < best.smoothing:
-                    best = r
-                    picks[name] = r
+            better = res.dominating(best)
+            if better is not best:
+                best = picks[name] = better
     assert best is not None
     if master and best.setting.shaper_type.name == "zv":
         best = _avoid_zv(best, picks, types)
@@ -358,27 +374,42 @@ def _avoid_zv(best: KlipperPick, picks: dict[str, KlipperPick], types: tuple[str
 
 def _fit_shaper(fw: Firmware, st: ShaperType, damping: float, datasets: list[tuple[np.ndarray, np.ndarray]],
                 max_smoothing: float | None, max_shaper_freq: float, step: float, master: bool
-                ) -> tuple[KlipperPick, list[KlipperPick]]:
+                ) -> tuple[KlipperPick, _Scanned]:
     """One type's pick (Klipper's ``fit_shaper``) and the frequencies it scanned, low to high."""
     freqs = np.arange(st.tool_min_freq or max(st.min_freq, 20.0), min(max_shaper_freq, st.max_freq), step)
-    res = klipper_scan(fw, st, damping, freqs, datasets)  # low to high
+    scan = _Scan(fw, st, damping, freqs, datasets)  # low to high
     # best vibration, scanning from high to low frequency (ties keep the higher one); with
     # max_smoothing the scan stops at the first frequency that smooths more, and the best so far is
     # returned without the score-based selection (fit_shaper's early return)
-    best_res, cut = None, False
-    scanned = []
-    for r in res[::-1]:
-        if max_smoothing is not None and r.smoothing > max_smoothing and best_res is not None:
-            cut = True
+    vib, sm = scan.vib.tolist(), scan.sm.tolist()
+    score = [b * (v ** 1.5 + 0.2 * v + 0.01) for v, b in zip(vib, sm)]  # KlipperPick.score, in the same floats
+    best, cut, low = -1, False, 0
+    for i in range(len(vib) - 1, -1, -1):
+        if max_smoothing is not None and sm[i] > max_smoothing and best >= 0:
+            cut, low = True, i + 1
             break
-        scanned.append(r)
-        if best_res is None or r.vibrations < best_res.vibrations:
-            best_res = r
-    assert best_res is not None
-    chosen = best_res
+        if best < 0 or vib[i] < vib[best]:
+            best = i
+    chosen = best
     slack = 0.0005 if master else 0.0  # Kalico / v0.13: within 1.1 x, no absolute slack
     if not cut:
-        for r in scanned:
-            if r.vibrations < best_res.vibrations * 1.1 + slack and r.score < chosen.score:
-                chosen = r
-    return chosen, scanned[::-1]
+        for i in range(len(vib) - 1, -1, -1):
+            if vib[i] < vib[best] * 1.1 + slack and score[i] < score[chosen]:
+                chosen = i
+    return scan.pick(chosen), _Scanned(scan, low)
+
+
+class _Scanned(NamedTuple):
+    """The frequencies of a scan from ``low`` up (what ``fit_shaper`` looked at)."""
+
+    scan: _Scan
+    low: int
+
+    def dominating(self, best: KlipperPick) -> KlipperPick:
+        """The last scanned result better than ``best`` in both vibrations and smoothing, each replacing the
+        one before as Klipper master's loop does (``best`` if none is)."""
+        s = self.scan
+        for i in range(self.low, s.freqs.size):
+            if s.vib[i] < best.vibrations and s.sm[i] < best.smoothing:
+                best = s.pick(i)
+        return best

@@ -44,7 +44,7 @@ import numpy as np
 
 from .. import _validate as v
 from ..firmware import Firmware, Klipper, Setting, ShaperType, vibration_grid
-from ..firmware.base import smoothing_offsets
+from ..firmware.base import smoothing_offsets, unchecked_vibration_grid
 from ..firmware.klipper import DEFAULT_DAMPING, _above_threshold, firmware_vibrations, klipper_recommendation
 from ..modes import Mode
 from ..shapers import Shaper, design
@@ -267,7 +267,7 @@ def _score_type(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
             # Klipper's measure it does not subtract the 1/20 threshold (which reads a 7 % residual at the
             # peak as 2 %), so vtol means what it says
             b, p, _ = _above_threshold(bins, psd)
-            V = vibration_grid(A, T, np.concatenate([b * d for d in drift]), np.asarray(dampings))
+            V = unchecked_vibration_grid(A, T, np.concatenate([b * d for d in drift]), np.asarray(dampings))
             V = V.reshape(freqs.size, len(drift), b.size, len(dampings))
             R = np.einsum("fdbz,b->fdz", V, p) / float(p.sum())  # [F, drift, zeta]
             vib = np.maximum(vib, R.max(axis=(1, 2)))
@@ -534,10 +534,15 @@ def optimum(boxes: list[ModeBox], *, vtol: float = 0.05) -> tuple[Shaper, float,
             continue
         options.append((f"{kind} at {dom.mode.freq_hz:.2f} Hz", S))
         if len(boxes) > 1:
+            # the dominant mode's design is one of the factors: designed once (issue #15; the multi-hump
+            # EI designs are solved numerically)
+            def one(b: ModeBox, kind: str = kind, params: dict[str, Any] = params, S: Shaper = S) -> Shaper:
+                return S if b is dom else design(kind, b.mode, **params)
+
             try:
-                Sc = design(kind, boxes[0].mode, **params)
+                Sc = one(boxes[0])
                 for b in boxes[1:]:
-                    Sc = Sc * design(kind, b.mode, **params)
+                    Sc = Sc * one(b)
             except ValueError:
                 continue
             options.append((f"{kind} convolved over {len(boxes)} modes", Sc))

@@ -29,7 +29,7 @@ from .. import _validate as v
 from ..modes import Mode
 from .results import PeakGuess
 from .significance import MAX_MODES, ModeTest, NoModeFound, at_band_edge, search_cells
-from .spectral_model import ZETA_BOUNDS, SpectralModel, Spectrum, pole_bounds
+from .spectral_model import ZETA_BOUNDS, Batch, SpectralModel, Spectrum, pole_bounds
 from .welch import (KAISER6_CORRELATION, block_kernel, smoothed_periodogram, welch_dispersion,  # noqa: F401
                     welch_kernel, welch_psd, window_correlation)  # (re-exported: their old home)
 
@@ -221,21 +221,23 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, Callable[
     return x
 
 
-def _screen_new_pole(model: SpectralModel, theta: np.ndarray, starts: np.ndarray, *, max_iter: int = 15,
-                     rtol: float = 1e-5) -> np.ndarray:
-    """Fit only the new pole from each start (rows ``(ln w, zeta)``), the others fixed: a cheap screen.
+def _levenberg_marquardt_batch(evaluate: Callable[[np.ndarray], Batch], X0: np.ndarray, lo: np.ndarray,
+                               hi: np.ndarray, *, max_iter: int, rtol: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_levenberg_marquardt` on every row of ``X0`` at once: each row keeps its own damping ``lam``
+    and stops on its own test, so each row takes the steps it would take alone (issue #15).
 
-    :func:`_levenberg_marquardt`'s steps, run for every start at once (issue #15): each start keeps
-    its own damping ``lam`` and stops on its own test.  Returns the fitted new poles, one row per start.
+    ``evaluate(X)`` gives the rows' residuals and, on demand, their Jacobians (:class:`Batch`); a
+    Jacobian is computed only at accepted points, from the evaluation that accepted them.  Returns the
+    fitted rows and their costs (sums of squared residuals).
     """
-    lo, hi = pole_bounds(model, 1)
-    lo, hi = lo + 1e-9, hi - 1e-9
-    X = np.clip(np.asarray(starts, float), lo, hi)
-    r, jac = model.screen(theta, X)
-    J = jac()
+    X = np.minimum(np.maximum(np.asarray(X0, float), lo), hi)
+    b = evaluate(X)
+    r = b.r.copy()
+    J = b.jacobian(range(X.shape[0]))
     cost = np.einsum("cb,cb->c", r, r)
     lam = np.full(X.shape[0], 1e-3)
     active = np.ones(X.shape[0], dtype=bool)
+    eye = np.eye(X.shape[1])
     for _ in range(max_iter):
         idx = np.flatnonzero(active)
         if not idx.size:
@@ -247,23 +249,24 @@ def _screen_new_pole(model: SpectralModel, theta: np.ndarray, starts: np.ndarray
         d[d <= 0] = 1.0
         pending = np.ones(idx.size, dtype=bool)
         new_x, new_r, new_c = X[idx].copy(), ri.copy(), cost[idx].copy()
+        source: list[tuple[Batch, int] | None] = [None] * idx.size  # the evaluation that accepted each row
         for _ in range(12):
             sel = np.flatnonzero(pending)
             if not sel.size:
                 break
-            M = H[sel] + lam[idx[sel], None, None] * (d[sel, :, None] * np.eye(2)[None])
-            ok = np.isfinite(np.linalg.det(M)) & (np.abs(np.linalg.det(M)) > 0)
-            lam[idx[sel[~ok]]] *= 10.0  # singular: more damping, as np.linalg.solve's error does
-            sel = sel[ok]
+            step, ok = _solve_rows(H[sel] + lam[idx[sel], None, None] * (d[sel, :, None] * eye), -g[sel])
+            lam[idx[sel[~ok]]] *= 10.0  # singular: more damping, as the single fit does
+            sel, step = sel[ok], step[ok]
             if not sel.size:
                 continue
-            step = np.linalg.solve(M[ok], -g[sel][:, :, None])[:, :, 0]
-            xn = np.clip(X[idx[sel]] + step, lo, hi)
-            rn, _ = model.screen(theta, xn)
-            cn = np.einsum("cb,cb->c", rn, rn)
+            xn = np.minimum(np.maximum(X[idx[sel]] + step, lo), hi)
+            bn = evaluate(xn)
+            cn = np.einsum("cb,cb->c", bn.r, bn.r)
             better = cn < cost[idx[sel]]
             hit = sel[better]
-            new_x[hit], new_r[hit], new_c[hit] = xn[better], rn[better], cn[better]
+            new_x[hit], new_r[hit], new_c[hit] = xn[better], bn.r[better], cn[better]
+            for i, row in zip(hit, np.flatnonzero(better)):
+                source[i] = (bn, int(row))
             pending[hit] = False
             lam[idx[sel[~better]]] *= 4.0
         improved = ~pending
@@ -272,11 +275,51 @@ def _screen_new_pole(model: SpectralModel, theta: np.ndarray, starts: np.ndarray
         done = cost[up] - new_c[improved] <= rtol * cost[up]
         X[up], r[up], cost[up] = new_x[improved], new_r[improved], new_c[improved]
         active[up[done]] = False
-        go = up[~done]
-        lam[go] = np.maximum(lam[go] / 5.0, 1e-12)
-        if go.size:
-            J[go] = model.screen(theta, X[go])[1]()
-    return X
+        go = np.flatnonzero(improved)[~done]
+        lam[idx[go]] = np.maximum(lam[idx[go]] / 5.0, 1e-12)
+        by_source: dict[int, tuple[Batch, list[int], list[int]]] = {}
+        for i in go:
+            bn, row = source[i]  # type: ignore[misc]
+            entry = by_source.setdefault(id(bn), (bn, [], []))
+            entry[1].append(int(idx[i]))
+            entry[2].append(row)
+        for bn, targets, rows in by_source.values():
+            J[targets] = bn.jacobian(rows)
+    return X, cost
+
+
+def _solve_rows(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``M[c] x[c] = rhs[c]`` for every row; ``ok`` is False where ``M[c]`` is singular (``np.linalg.solve``
+    would raise).  2 x 2 systems (a screened pole) by Cramer's rule."""
+    if M.shape[1] == 2:
+        a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+        det = a * d - b * c
+        ok = np.isfinite(det) & (det != 0)
+        det = np.where(ok, det, 1.0)
+        return np.stack([(d * rhs[:, 0] - b * rhs[:, 1]) / det, (a * rhs[:, 1] - c * rhs[:, 0]) / det], axis=1), ok
+    try:
+        return np.linalg.solve(M, rhs[:, :, None])[:, :, 0], np.ones(M.shape[0], dtype=bool)
+    except np.linalg.LinAlgError:
+        out, ok = np.zeros(rhs.shape), np.ones(M.shape[0], dtype=bool)
+        for c in range(M.shape[0]):
+            try:
+                out[c] = np.linalg.solve(M[c], rhs[c])
+            except np.linalg.LinAlgError:
+                ok[c] = False
+        return out, ok
+
+
+def _screen_new_pole(model: SpectralModel, theta: np.ndarray, starts: np.ndarray, *, max_iter: int = 15,
+                     rtol: float = 1e-5) -> tuple[np.ndarray, np.ndarray]:
+    """Fit only the new pole from each start (rows ``(ln w, zeta)``), the others fixed: a cheap screen.
+
+    Returns the fitted new poles, one row per start, and the cost of each (the sum of squared
+    weighted residuals of ``theta`` plus that pole).
+    """
+    lo, hi = pole_bounds(model, 1)
+    lo, hi = lo + 1e-9, hi - 1e-9
+    return _levenberg_marquardt_batch(lambda X: model.batch(theta, X), np.asarray(starts, float), lo, hi,
+                                      max_iter=max_iter, rtol=rtol)
 
 
 def _peaks(model: SpectralModel, k: int, exclude: list[float], M: np.ndarray | None = None) -> list[PeakGuess]:
@@ -376,13 +419,8 @@ def _best_new_pole(model: SpectralModel, theta: np.ndarray, M_cur: np.ndarray) -
                    for z0 in [zp] + [z for z in (0.005, 0.02, 0.06, 0.2) if not 0.67 < z / zp < 1.5]]
     if not starts:
         return None
-    best = None
-    for x in _screen_new_pole(model, theta, np.array(starts)):
-        th = np.r_[theta, x]
-        rss = float(np.sum(model.residual(th) ** 2))
-        if best is None or rss < best[0]:
-            best = (rss, th)
-    return best[1]
+    X, cost = _screen_new_pole(model, theta, np.array(starts))
+    return np.r_[theta, X[int(np.argmin(cost))]]  # the first of the lowest, as a loop with ``<`` keeps
 
 
 def _second_start(model: SpectralModel, th: np.ndarray, M: np.ndarray, rss: float, M0: np.ndarray
@@ -394,12 +432,19 @@ def _second_start(model: SpectralModel, th: np.ndarray, M: np.ndarray, rss: floa
     found = sorted(math.exp(th[2 * k]) / (2 * math.pi) for k in range(n_new))
     same = len(direct) == n_new and all(abs(a - b) < 0.03 * b for a, b in zip(sorted(p for p, _ in direct), found))
     if len(direct) == n_new and not same:  # greedy steps already on those peaks: nothing to gain
-        for zl in (None, 0.02, 0.05, 0.1):  # the width guesses, then one damping for all
-            th0 = np.array([[math.log(2 * math.pi * fp), zp if zl is None else zl] for fp, zp in direct]).ravel()
-            th2, M2 = _fit(model, th0, iterations=0, rtol=1e-6)
-            rss2 = float(np.sum(model.residual(th2) ** 2))
-            if rss2 < rss:
-                th, M, rss = th2, M2, rss2
+        # the width guesses, then one damping for all: four fits side by side (as _fit would run each)
+        th0 = np.array([[[math.log(2 * math.pi * fp), zp if zl is None else zl] for fp, zp in direct]
+                        for zl in (None, 0.02, 0.05, 0.1)]).reshape(4, -1)
+        lo, hi = pole_bounds(model, n_new)
+        model.weights = 0.05 / model.floor
+        X, cost = _levenberg_marquardt_batch(lambda X: model.batch(np.zeros(0), X),
+                                             np.clip(th0, lo + 1e-9, hi - 1e-9), lo, hi, max_iter=60, rtol=1e-6)
+        better = None
+        for j in range(X.shape[0]):
+            if cost[j] < rss:
+                th, rss, better = X[j], float(cost[j]), j
+        if better is not None:
+            M = model.solve(th)[0]
     return th, M, rss
 
 
@@ -550,7 +595,7 @@ def _unresolved(model: SpectralModel, mode: Mode, i: int, edges: list[bool]) -> 
 
 def _no_mode_message(model: SpectralModel, M0: np.ndarray, cells: float) -> str:
     ratio = model.P / np.maximum(M0, 1e-300)
-    i = int(np.argmax(ratio))
+    i = int(np.argmax(ratio >= (1.0 - 1e-9) * np.max(ratio)))  # ties to rounding (a flat spectrum): the lowest bin
     return (f"no resonance found in {model.f[0]:.1f}-{model.f[-1]:.1f} Hz: the spectrum is explained by the "
             f"excitation and the noise floor (largest excess {ratio[i]:.2g}x at {model.f[i]:.1f} Hz is within "
             f"noise after {cells:.0f} frequency cells)")

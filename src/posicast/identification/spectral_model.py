@@ -20,11 +20,13 @@ so peaks only a few bins wide are compared like with like.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple, Sequence
 
 import numpy as np
+from scipy.linalg import lapack
 
 from .. import _validate as v
 from .significance import MAX_MODES
@@ -132,6 +134,28 @@ def _band(band: object) -> tuple[float, float]:
     return lo, hi
 
 
+class _Poles(NamedTuple):
+    """Poles on the model's sub-points: ``1 / prod_k |D_k|^2 / w_k^4`` and, per pole (rows), ``w^2``,
+    ``zeta``, ``w^2 - W^2`` and ``|D|^2`` (what the gradients need)."""
+
+    inv_den: np.ndarray
+    w2: np.ndarray
+    z: np.ndarray
+    re: np.ndarray
+    D2: np.ndarray
+
+
+class _Basis(NamedTuple):
+    """One linear solve: an orthonormal basis ``Q`` of the weighted, scaled columns (one column per design
+    column; zero columns for directions a rank-deficient design lacks), ``Q^T y``, the map from ``Q^T y`` to the
+    scaled coefficients, and the column scales (coefficients ``pinv @ proj / scale``)."""
+
+    Q: np.ndarray
+    proj: np.ndarray
+    pinv: np.ndarray
+    scale: np.ndarray
+
+
 class SpectralModel:
     """``M(f; poles, Q, g, N)`` on fixed bins, linear in everything but the poles."""
 
@@ -164,7 +188,27 @@ class SpectralModel:
         self.W2 = (2 * math.pi * ff) ** 2
         extra = [(self.f[0] / ff) ** 2] if self.low else []  # the slow sweep's lines
         self.extra = self._reduce(np.column_stack(extra + [np.ones_like(ff)]) * self.norm_f[:, None])
-        self._factors: dict[tuple[float, float], tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]] = {}
+        self._cw: dict[int, np.ndarray] = {}  # 2n + 1 -> the modal columns' fixed part, (bins, nsub, 2n + 1)
+        self._held: tuple[bytes, np.ndarray] | None = None  # a batch's held poles and their 1 / denominator
+        self._one = np.ones_like(self.W2)
+
+    @property
+    def weights(self) -> np.ndarray:
+        """The residual's weights per bin (``1/M`` in the Whittle steps)."""
+        return self._weights
+
+    @weights.setter
+    def weights(self, w: np.ndarray) -> None:
+        self._weights = np.asarray(w, dtype=float)
+        self._weighted_cache: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+    def _weighted(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For the current weights: the weighted data ``y``, the weighted extra columns and their norms."""
+        if self._weighted_cache is None:
+            w = self._weights
+            ew = self.extra * w[:, None]
+            self._weighted_cache = (self.P * w, ew, np.linalg.norm(ew, axis=0))
+        return self._weighted_cache
 
     def _reduce(self, A: np.ndarray) -> np.ndarray:
         """Kernel average of sub-point columns ``[bins * nsub, k]`` onto the bins ``[bins, k]``."""
@@ -172,33 +216,104 @@ class SpectralModel:
             return A
         return np.einsum("bsk,s->bk", A.reshape(self.f.size, self.nsub, A.shape[1]), self.kernel_weights)
 
-    def _denominator(self, theta: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-        """``prod_k |D_k|^2 / w_k^4`` and, per mode, ``d ln(.)/d ln w_k`` and ``d ln(.)/d zeta_k``."""
-        den = np.ones_like(self.W2)
-        grads = []
-        for k in range(theta.size // 2):
-            factor, grad = self._mode_factor(float(theta[2 * k]), float(theta[2 * k + 1]))
-            den = den * factor
-            grads.append(grad)
-        return den, grads
+    def _fixed_columns(self, k: int) -> np.ndarray:
+        """``kernel weight x E x T_j(x(f^2))`` on the sub-points, ``(bins, nsub, k)``: a modal column's kernel
+        average is then one contraction with ``1 / prod |D|^2`` (issue #15: no sub-point matrix per evaluation)."""
+        cw = self._cw.get(k)
+        if cw is None:
+            F, ns = self.f.size, self.nsub
+            fixed = (self.E_parts[0].reshape(F, ns) * self.kernel_weights[None, :])[:, :, None]
+            cw = np.ascontiguousarray(self.cheb[:, :k].reshape(F, ns, k) * fixed)
+            self._cw[k] = cw
+        return cw
 
-    def _mode_factor(self, log_w: float, z: float) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
-        """One mode's factor ``|D_k|^2 / w_k^4`` and its two log-gradients, remembered for the last few poles:
-        the forward selection screens a new pole with the others held fixed (issue #15; the same numbers)."""
-        key = (log_w, z)
-        hit = self._factors.get(key)
-        if hit is not None:
-            return hit
+    def _poles(self, theta: np.ndarray, product: bool = True) -> _Poles:
+        """The poles ``theta`` on the sub-points: ``1 / prod_k |D_k|^2 / w_k^4`` (``product=False``: left at 1)
+        and, per pole (rows), what the gradients need."""
+        w = np.array([math.exp(float(x)) for x in theta[0::2]])
+        z = np.asarray(theta[1::2], dtype=float)
+        w2 = (w * w)[:, None]
+        re = w2 - self.W2
+        D2 = re * re
+        D2 += (4.0 * z * z * w * w)[:, None] * self.W2
+        inv_den = self._one
+        if product and w.size:
+            den = D2[0] / (w2[0] * w2[0])
+            for j in range(1, w.size):
+                den *= D2[j] / (w2[j] * w2[j])
+            inv_den = 1.0 / den
+        return _Poles(inv_den, w2, z[:, None], re, D2)
+
+    def _gradients(self, p: _Poles) -> np.ndarray:
+        """Per pole, ``d ln(|D_k|^2 / w_k^4) / d ln w_k`` and ``d ln(.) / d zeta_k``: rows ``(2 n, sub-points)``."""
         W2 = self.W2
-        w = math.exp(log_w)
-        w2 = w * w
-        re = w2 - W2
-        D2 = re * re + 4.0 * z * z * w2 * W2
-        out = (D2 / (w2 * w2), ((4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2))
-        if len(self._factors) >= 16:
-            self._factors.pop(next(iter(self._factors)))
-        self._factors[key] = out
-        return out
+        zw = p.z * p.w2
+        G = np.empty((2 * p.w2.shape[0], W2.size))
+        G[0::2] = (4.0 * p.w2 * p.re + (8.0 * p.z * zw) * W2) / p.D2 - 4.0
+        G[1::2] = (8.0 * zw) * W2 / p.D2
+        return G
+
+    def _scaled(self, inv_den: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """The weighted design ``[modal, extra]`` with unit columns, and its column norms, for ``1 / den`` on the
+        sub-points (``(sub-points,)``, or ``(C, sub-points)`` for a stack of designs).
+
+        The modal columns ``E T_j(x) / prod |D|^2`` averaged over each bin are one product of ``1 / den``
+        with :meth:`_fixed_columns` per bin.
+        """
+        F, ns = self.f.size, self.nsub
+        _, ew, en = self._weighted()
+        lead = inv_den.shape[:-1]
+        A = np.empty(lead + (F, k + ew.shape[1]))
+        # per bin, (designs, nsub) @ (nsub, k): one small product per bin, not one per bin and design
+        modal = np.matmul(inv_den.reshape(-1, F, ns).transpose(1, 0, 2), self._fixed_columns(k))  # (F, C, k)
+        np.multiply(modal.transpose(1, 0, 2).reshape(lead + (F, k)), self._weights[:, None], out=A[..., :k])
+        A[..., k:] = ew
+        scale = np.empty(lead + (k + ew.shape[1],))
+        scale[..., :k] = np.sqrt(np.einsum("...bk,...bk->...k", A[..., :k], A[..., :k]))
+        scale[..., k:] = en
+        if not scale.all():
+            scale[scale == 0] = 1.0
+        A /= scale[..., None, :]
+        return A, scale
+
+    def _basis(self, As: np.ndarray, scale: np.ndarray) -> _Basis:
+        """An orthonormal basis of the weighted, column-scaled design ``As`` and its pseudo-inverse.
+
+        Householder QR while the scaled design is clearly of full rank (``sigma_min / sigma_max > 1e-10``,
+        bounded below by ``1 / (|R|_F |R^-1|_F)``); otherwise the SVD truncated at ``1e-12 sigma_max``.
+        Both span the same space: the residual and coefficients agree to rounding (issue #15: a QR of
+        a tall, thin matrix costs a fifth of its SVD).
+        """
+        y = self._weighted()[0]
+        k = As.shape[1]
+        if k <= As.shape[0]:
+            qr, tau, _, info = lapack.dgeqrf(As)
+            if info == 0:
+                R = qr[:k] * _upper(k)
+                Rinv, info = lapack.dtrtri(R)
+                r1, r2 = R.ravel(), Rinv.ravel()
+                if info == 0 and float(r1 @ r1) * float(r2 @ r2) < 1e20:
+                    Q = lapack.dorgqr(qr, tau)[0]
+                    return _Basis(Q, Q.T @ y, Rinv, scale)
+        U, sv, Vt = np.linalg.svd(As, full_matrices=False)
+        drop = sv <= 1e-12 * sv[0]  # the truncated directions: zero columns, so every basis has k columns
+        U[:, drop] = 0.0
+        pinv = Vt.T / np.where(drop, 1.0, sv)
+        pinv[:, drop] = 0.0
+        return _Basis(U, U.T @ y, pinv, scale)
+
+    def _pole_jacobian(self, b: _Basis, inv_den: np.ndarray, G: np.ndarray, k: int) -> np.ndarray:
+        """Kaufman's columns ``-P_perp W d(A c)/d theta`` for the gradient rows ``G`` (``(m, sub-points)``).
+
+        Only the modal columns depend on the poles, each through its factor ``-g``: ``d(A c)`` is the
+        kernel average of ``-g E R(f^2) / prod |D|^2``, ``R`` the fitted numerator.
+        """
+        F, ns = self.f.size, self.nsub
+        coef = (b.pinv @ b.proj) / b.scale
+        h = (self._fixed_columns(k).reshape(F * ns, k) @ coef[:k]) * inv_den
+        D = np.einsum("gbs,bs->bg", G.reshape(-1, F, ns), h.reshape(F, ns))
+        D *= -self._weights[:, None]
+        return -(D - b.Q @ (b.Q.T @ D))
 
     def columns(self, theta: np.ndarray) -> np.ndarray:
         """``E R(f^2) / prod |D_k|^2`` with ``R`` a polynomial of degree ``2 n`` (Chebyshev basis), ``1/f^2``, 1.
@@ -207,39 +322,23 @@ class SpectralModel:
         with ``R >= 0`` of degree ``2 n`` in ``f^2`` (the numerators of ``H_c`` have degree
         ``2 n`` in ``s``), and by spectral factorisation every such ``R`` is one channel's
         ``|numerator|^2``: one basis serves a single axis and Klipper's sum of axes.
+        The slow sweep's lines (below ~15 Hz, where ``|H|^2`` is nearly constant) are an extra
+        column outside the modes: putting them through the modes' denominator with a numerator
+        of their own bent the peaks and biased damping by +1 %; modes under 15 Hz are flagged instead.
         """
-        return self._columns(theta)[0]
-
-    def _columns(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-        """The columns, the modal columns on the kernel's sub-points, and the pole gradients of ``ln prod``."""
-        n = theta.size // 2
-        den, dl = self._denominator(theta)
-        basis = self.cheb[:, : 2 * n + 1]
-        # the slow sweep's lines (below ~15 Hz, where |H|^2 is nearly constant) are an extra column
-        # outside the modes: putting them through the modes' denominator with a numerator of their own
-        # bent the peaks and biased damping by +1 %; modes under 15 Hz are flagged instead
-        modal = basis * (self.E_parts[0] / den)[:, None]
-        return np.hstack([self._reduce(modal), self.extra]), modal, dl
-
-    def _projection(self, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """SVD of the weighted, column-scaled design (rank-truncated): U, s, Vt, column scales."""
-        Aw = A * self.weights[:, None]
-        scale = np.linalg.norm(Aw, axis=0)
-        scale[scale == 0] = 1.0
-        U, sv, Vt = np.linalg.svd(Aw / scale, full_matrices=False)
-        keep = sv > 1e-12 * sv[0]
-        return U[:, keep], sv[keep], Vt[keep], scale
+        F, ns, k = self.f.size, self.nsub, theta.size + 1
+        modal = np.matmul(self._poles(theta).inv_den.reshape(F, 1, ns), self._fixed_columns(k))[:, 0, :]
+        return np.hstack([modal, self.extra])
 
     def solve(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Weighted linear least squares for the linear coefficients; returns (model, coefficients)."""
-        A = self.columns(theta)
-        U, sv, Vt, scale = self._projection(A)
-        coef = (Vt.T @ ((U.T @ (self.P * self.weights)) / sv)) / scale
-        return A @ coef, coef
+        b = self._basis(*self._scaled(self._poles(theta).inv_den, theta.size + 1))
+        y = self._weighted()[0]
+        coef = (b.pinv @ b.proj) / b.scale
+        return (y - (y - b.Q @ b.proj)) / self._weights, coef
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
-        M, _ = self.solve(theta)
-        return (self.P - M) * self.weights
+        return self.residual_and_jacobian_lazy(theta)[0]
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         """Kaufman's variable-projection Jacobian ``-P_perp W (dA/dtheta_k) c`` (analytic column derivatives)."""
@@ -256,66 +355,65 @@ class SpectralModel:
         A Levenberg-Marquardt step that is rejected needs no Jacobian, and a fit of the
         last pole alone needs only its two columns (issue #15): both are asked for only when needed.
         """
-        A, modal, dl = self._columns(theta)
-        U, sv, Vt, scale = self._projection(A)
-        y = self.P * self.weights
-        proj = U.T @ y
+        p = self._poles(theta)
+        k = theta.size + 1
+        b = self._basis(*self._scaled(p.inv_den, k))
+        r = self._weighted()[0] - b.Q @ b.proj
+        return r, lambda: self._pole_jacobian(b, p.inv_den, self._gradients(p)[first:], k)
 
-        def jacobian() -> np.ndarray:
-            coef = (Vt.T @ (proj / sv)) / scale
-            # d(A c)/d theta_k: only the modal columns depend on the poles, each through its factor -g_k
-            q = modal @ coef[: modal.shape[1]]
-            G = np.column_stack([x for pair in dl for x in pair][first:])
-            D = self._reduce(-q[:, None] * G) * self.weights[:, None]
-            return -(D - U @ (U.T @ D))
+    def batch(self, theta: np.ndarray, X: np.ndarray) -> Batch:
+        """The poles ``theta`` (held) plus, per row of ``X``, the poles of that row (free): the residuals of
+        every row at once, and the Jacobians along the free poles on demand (:class:`Batch`).
 
-        return y - U @ proj, jacobian
-
-
-    def screen(self, theta: np.ndarray, X: np.ndarray) -> tuple[np.ndarray, Callable[[], np.ndarray]]:
-        """:meth:`residual_and_jacobian_lazy` of the poles ``theta`` plus one new pole per row of ``X``
-        (``(ln w, zeta)``), all at once, with the Jacobian along the new pole only.
-
-        Forward selection screens a dozen starts of a new pole with the others held fixed:
-        batched, the per-call overhead of small arrays is paid once (issue #15).  Returns the
-        residuals ``(C, bins)`` and a function giving the Jacobians ``(C, bins, 2)``.
+        Several fits of the same size run side by side (the screened starts of a new pole, the second
+        starts of the forward selection): the held poles' denominator is formed once and every row's
+        modal columns in one product (issue #15).  Rows are the same numbers as
+        :meth:`residual_and_jacobian_lazy` of ``[theta, row]`` with ``first = theta.size``, to rounding.
         """
-        den0, _ = self._denominator(theta)
-        n = theta.size // 2 + 1
-        W2 = self.W2[None, :]
-        w2 = np.exp(2.0 * X[:, 0])[:, None]
-        z = X[:, 1][:, None]
-        re = w2 - W2
-        D2 = re * re + 4.0 * z * z * w2 * W2
-        den = den0[None, :] * (D2 / (w2 * w2))
-        grads = np.stack([(4.0 * w2 * re + 8.0 * z * z * w2 * W2) / D2 - 4.0, 8.0 * z * w2 * W2 / D2], axis=2)
-        modal = self.cheb[None, :, : 2 * n + 1] * (self.E_parts[0][None, :] / den)[:, :, None]
-        C, k = X.shape[0], modal.shape[2]
-        A = np.concatenate([self._reduce_batch(modal), np.broadcast_to(self.extra, (C,) + self.extra.shape)], axis=2)
-        Aw = A * self.weights[None, :, None]
-        scale = np.linalg.norm(Aw, axis=1)
-        scale[scale == 0] = 1.0
-        U, sv, Vt = np.linalg.svd(Aw / scale[:, None, :], full_matrices=False)
-        keep = sv > 1e-12 * sv[:, :1]
-        U = U * keep[:, None, :]  # the rank-truncated columns
-        y = self.P * self.weights
-        proj = np.einsum("cbk,b->ck", U, y)
+        key = theta.tobytes()
+        if self._held is None or self._held[0] != key:
+            self._held = (key, self._poles(theta).inv_den)
+        C, m = X.shape[0], X.shape[1] // 2
+        p = self._poles(X.ravel(), product=False)  # rows: C x m free poles
+        fac = (p.w2 * p.w2) / p.D2
+        inv = self._held[1] * fac[0::m]
+        for j in range(1, m):
+            inv *= fac[j::m]
+        k = theta.size + X.shape[1] + 1
+        As, scale = self._scaled(inv, k)
+        bases = [self._basis(As[c], scale[c]) for c in range(C)]
+        y = self._weighted()[0]
+        r = np.stack([y - b.Q @ b.proj for b in bases])
+        return Batch(self, bases, inv, p, k, r)
 
-        def jacobian() -> np.ndarray:
-            inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
-            coef = np.einsum("ckj,ck->cj", Vt, proj * inv) / scale
-            q = np.einsum("csk,ck->cs", modal, coef[:, :k])
-            D = self._reduce_batch(-q[:, :, None] * grads) * self.weights[None, :, None]
-            return -(D - U @ (U.transpose(0, 2, 1) @ D))
 
-        return y[None, :] - np.einsum("cbk,ck->cb", U, proj), jacobian
+class Batch:
+    """Rows of :meth:`SpectralModel.batch`: residuals ``r`` ``(C, bins)``; :meth:`jacobian` of chosen rows."""
 
-    def _reduce_batch(self, A: np.ndarray) -> np.ndarray:
-        """:meth:`_reduce` of a stack ``[C, bins * nsub, k]``."""
-        if self.nsub == 1:
-            return A
-        C, _, k = A.shape
-        return np.einsum("cbsk,s->cbk", A.reshape(C, self.f.size, self.nsub, k), self.kernel_weights)
+    def __init__(self, model: SpectralModel, bases: list[_Basis], inv_den: np.ndarray, free: _Poles, k: int,
+                 r: np.ndarray) -> None:
+        self.model, self.bases, self.inv_den, self.free, self.k, self.r = model, bases, inv_den, free, k, r
+        self._G: np.ndarray | None = None
+
+    def jacobian(self, rows: Sequence[int] | np.ndarray) -> np.ndarray:
+        """The Jacobians ``(len(rows), bins, 2 m)`` of the chosen rows along their ``m`` free poles (Kaufman's
+        columns, as :meth:`SpectralModel._pole_jacobian` row by row)."""
+        model, rows = self.model, np.asarray(rows, dtype=int)
+        C, F, ns, k = self.r.shape[0], model.f.size, model.nsub, self.k
+        if self._G is None:
+            self._G = model._gradients(self.free).reshape(C, -1, F, ns)
+        Q = np.stack([self.bases[c].Q for c in rows]) if rows.size > 1 else self.bases[rows[0]].Q[None]
+        coef = np.stack([(self.bases[c].pinv @ self.bases[c].proj) / self.bases[c].scale for c in rows])
+        h = (coef[:, :k] @ model._fixed_columns(k).reshape(F * ns, k).T) * self.inv_den[rows]
+        D = np.einsum("cgbs,cbs->cbg", self._G[rows], h.reshape(-1, F, ns))
+        D *= -model.weights[:, None]
+        return -(D - Q @ (Q.transpose(0, 2, 1) @ D))
+
+
+@functools.lru_cache(maxsize=None)
+def _upper(k: int) -> np.ndarray:
+    """The ``k x k`` upper-triangular mask (ones on and above the diagonal)."""
+    return np.triu(np.ones((k, k)))
 
 
 def _smooth(P: np.ndarray, width: int = 5) -> np.ndarray:
