@@ -5,42 +5,23 @@ thousands of times per design (the grid, every polish round, every exact end),
 mostly at 9 to 100 frequencies a call.  :meth:`TransferFunction.__call__` then
 spends most of its time on what does not change from call to call: checking its
 argument, converting the coefficients, looking for its Taylor expansion points.
-:class:`OnAxis` does that once: numerator and denominator by Horner's rule and
-their exponentials, as :meth:`QuasiPolynomial.__call__` computes them (the same
-operations in the same order, so the same numbers), and the points that need
-more (within the Taylor radius of an expansion point, or ``0 / 0``) through the
-transfer function itself.  A constant is a constant.
+:class:`OnAxis` does that once: numerator and denominator through the
+quasi-polynomials' own unchecked evaluator (``QuasiPolynomial._eval``, with its
+per-object constants: the numbers :meth:`QuasiPolynomial.__call__` gives), and the
+points that need more (within the Taylor radius of an expansion point, or ``0 / 0``)
+through the transfer function itself.  A constant is a constant.
 """
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
-from ..core.quasipoly import QuasiPolynomial, horner
+from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction
 
 __all__ = ["OnAxis"]
-
-
-class _Sum:
-    """One quasi-polynomial ``sum_i p_i(s) exp(-s tau_i)`` at complex ``s``, as ``QuasiPolynomial._eval``."""
-
-    def __init__(self, q: QuasiPolynomial) -> None:
-        self.zero = q.is_zero
-        self.coeffs = np.ascontiguousarray(q.coeffs.T)  # (degree + 1, rows): horner's layout
-        self.delays = np.asarray(q.delays, dtype=float)
-        # one undelayed row: exp(-0 s) = 1 exactly, and p * (1 + 0j) = p, so the product is skipped
-        self.plain = self.delays.size == 1 and self.delays[0] == 0.0
-
-    def __call__(self, s: np.ndarray) -> np.ndarray:
-        if self.zero:
-            return np.zeros_like(s)
-        with np.errstate(all="ignore"):
-            polys = horner(s, self.coeffs)
-            if self.plain:
-                return polys[0]
-            exps = np.exp(-np.multiply.outer(self.delays, s))
-            return np.sum(polys * exps, axis=0)
 
 
 class OnAxis:
@@ -60,16 +41,16 @@ class OnAxis:
             self.constant = 0j
         elif num.coeffs.shape == (1, 1) and den.coeffs.shape == (1, 1) and not tf.has_delays:
             self.constant = complex(tf(0.0))
-        self._num, self._den = _Sum(num), _Sum(den)
+        self._num, self._den = num._eval, den._eval
         tau = tf.max_delay
         pts = tf._points()
         # the Taylor radius of TransferFunction.__call__ about each expansion point
         self._near = [(complex(p), 0.5 / max(tau, 1.0 / (1.0 + abs(p)))) for p in pts]
 
     @staticmethod
-    def quasi(q: QuasiPolynomial) -> _Sum:
+    def quasi(q: QuasiPolynomial) -> Callable[[np.ndarray], np.ndarray]:
         """The unchecked evaluator of one quasi-polynomial at complex ``s`` (inf/NaN where it overflows)."""
-        return _Sum(q)
+        return q._eval
 
     def __call__(self, w: np.ndarray) -> np.ndarray:
         if self.constant is not None:
