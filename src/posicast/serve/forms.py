@@ -39,6 +39,17 @@ def text_field(form: Mapping[str, Any], key: str, default: str = "") -> str:
     return str(value).strip()
 
 
+def _finite(text: str, name: str, kind: str, finite: str) -> float:
+    """``text`` as a finite float: ValueError "``name`` must be ``kind`` / ``finite``, got ..." otherwise."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise ValueError(f"{name} must be {kind}, got {text!r}") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be {finite}, got {text}")
+    return x
+
+
 def number(form: Mapping[str, Any], key: str, name: str | None = None, default: float | None = None) -> float:
     """Field ``key`` as a finite float; ValueError naming ``name`` (default ``key``) otherwise.
 
@@ -55,13 +66,7 @@ def number(form: Mapping[str, Any], key: str, name: str | None = None, default: 
         if default is None:
             raise ValueError(f"{name} is required")
         return default
-    try:
-        x = float(text)
-    except ValueError:
-        raise ValueError(f"{name} must be a number, got {text!r}") from None
-    if not math.isfinite(x):
-        raise ValueError(f"{name} must be finite, got {text}")
-    return x
+    return _finite(text, name, "a number", "finite")
 
 
 def optional_number(form: Mapping[str, Any], key: str, name: str | None = None) -> float | None:
@@ -79,15 +84,7 @@ def coefficients(text: str, name: str) -> list[float]:
     parts = text.replace(",", " ").replace(";", " ").split()
     if not parts:
         raise ValueError(f"{name} must not be empty")
-    out = []
-    for p in parts:
-        try:
-            x = float(p)
-        except ValueError:
-            raise ValueError(f"{name} must be numbers separated by spaces, got {p!r}") from None
-        if not math.isfinite(x):
-            raise ValueError(f"{name} must be finite numbers, got {p}")
-        out.append(x)
+    out = [_finite(p, name, "numbers separated by spaces", "finite numbers") for p in parts]
     while len(out) > 1 and out[0] == 0.0:  # leading zeros do not raise the degree
         out.pop(0)
     if len(out) - 1 > MAX_DEGREE:
