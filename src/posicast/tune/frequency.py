@@ -379,29 +379,81 @@ class FrequencyData:
             self._append(w0 * np.geomspace(1e-1, 1.0, 101)[:-1], at=1 if self._has_zero else 0)
 
     def _insert_points(self, X: float, Y: float) -> None:
-        """Insert midpoints wherever the exact derivative says the grid is too coarse (:meth:`_violations`)."""
+        """Insert midpoints wherever the exact derivative says the grid is too coarse (:meth:`_violations`).
+
+        Each round bisects every interval that fails the test; only the two halves of a bisected
+        interval are tested again (the test of an interval uses its two ends alone), and the new
+        points are merged into the grid once, at the end.  The same points, evaluated in the same
+        batches, as bisecting the whole grid round by round (issue #15: on a lumped shaper's grid of
+        ~10^5 columns, testing and merging the whole grid every round cost as much as evaluating it).
+        """
+        omega = self.omega
+        n_total = omega.size
+        ends, finite = self._interval_ends(self._vals, X, Y)
+        # the intervals under test: left and right frequencies and each test quantity at both ends
+        wl, wr = omega[:-1], omega[1:]
+        el = [(d[:-1], z[:-1]) for d, z in ends]
+        er = [(d[1:], z[1:]) for d, z in ends]
+        fl, fr = finite[:-1], finite[1:]
+        new_w: list[np.ndarray] = []
+        new_v: list[dict[str, np.ndarray]] = []
         for _ in range(_REFINE_ROUNDS):
-            bad = self._violations(X, Y)
-            if not np.any(bad) or self.omega.size >= _MAX_POINTS:
+            bad = self._bad_intervals(wl, wr, el, er, fl, fr)
+            if not np.any(bad) or n_total >= _MAX_POINTS:
                 break
             idx = np.flatnonzero(bad)
-            if self.omega.size + idx.size > _MAX_POINTS:
-                idx = idx[: _MAX_POINTS - self.omega.size]
-            new = 0.5 * (self.omega[idx] + self.omega[idx + 1])
-            nv = self._evaluate(new)
-            # each midpoint goes right after its left neighbour: the merged order without a sort
-            n = self.omega.size
-            at_new = idx + np.arange(1, idx.size + 1)
-            at_old = np.arange(n) + np.searchsorted(idx, np.arange(n), side="left")
+            if n_total + idx.size > _MAX_POINTS:
+                idx = idx[: _MAX_POINTS - n_total]
+            mid = 0.5 * (wl[idx] + wr[idx])
+            nv = self._evaluate(mid)
+            new_w.append(mid)
+            new_v.append(nv)
+            n_total += mid.size
+            m_ends, m_fin = self._interval_ends(nv, X, Y)
 
-            def merged(old: np.ndarray, fresh: np.ndarray) -> np.ndarray:
-                out = np.empty(n + fresh.size, dtype=old.dtype)
-                out[at_old] = old
-                out[at_new] = fresh
-                return out
+            def halves(left: np.ndarray, middle: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                """The (left, right) ends of the two halves of each bisected interval, in grid order."""
+                lo = np.empty(2 * idx.size, dtype=left.dtype)
+                hi = np.empty(2 * idx.size, dtype=left.dtype)
+                lo[0::2], lo[1::2] = left[idx], middle
+                hi[0::2], hi[1::2] = middle, right[idx]
+                return lo, hi
 
-            self.omega = merged(self.omega, new)
-            self._vals = {k: merged(self._vals[k], nv[k]) for k in self._vals}
+            wl, wr = halves(wl, mid, wr)
+            pairs = [(halves(a, md, b), halves(c, mz, e)) for (a, c), (md, mz), (b, e) in zip(el, m_ends, er)]
+            el = [(d[0], z[0]) for d, z in pairs]
+            er = [(d[1], z[1]) for d, z in pairs]
+            fl, fr = halves(fl, m_fin, fr)
+        if new_w:
+            w_all = np.concatenate([omega] + new_w)
+            order = np.argsort(w_all, kind="stable")
+            self.omega = w_all[order]
+            self._vals = {k: np.concatenate([self._vals[k]] + [nv[k] for nv in new_v])[order] for k in self._vals}
+
+    def _interval_ends(self, v: dict[str, np.ndarray], X: float, Y: float) -> tuple[list[tuple[np.ndarray, np.ndarray]],
+                                                                                 np.ndarray]:
+        """Per point, what the spacing test of :meth:`_violations` reads at an interval's end: for ``1 + L``
+        and for each constraint, the derivative bound and the size; and whether ``|1 + L|`` is finite."""
+        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
+        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
+        out = [(der, np.maximum(mag, self.r_min))]
+        for i, c in enumerate(self.constraints):
+            W = np.abs(v[f"W{i}"]) / c.gamma
+            dW = np.abs(v[f"dW{i}"]) / c.gamma
+            nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
+            nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
+            wn = W * nmag
+            out.append((dW * nmag + W * nder, np.maximum(np.maximum(wn, mag), self.r_min)))
+        return out, np.isfinite(mag)
+
+    def _bad_intervals(self, wl: np.ndarray, wr: np.ndarray, el: list[tuple[np.ndarray, np.ndarray]],
+                       er: list[tuple[np.ndarray, np.ndarray]], fl: np.ndarray, fr: np.ndarray) -> np.ndarray:
+        """The spacing test of :meth:`_violations` on intervals given by their ends (:meth:`_interval_ends`)."""
+        h = wr - wl
+        bad = np.zeros(h.shape, dtype=bool)
+        for (dl, zl), (dr, zr) in zip(el, er):
+            bad |= np.maximum(dl, dr) * h / np.minimum(zl, zr) > self.delta
+        return bad & fl & fr & (h > 1e-12 * wr)
 
     def _curve_point(self, vals: dict[str, np.ndarray], i: int) -> tuple[float, float] | None:
         u, a, b = vals["u"][i], vals["a"][i], vals["b"][i]
@@ -591,6 +643,17 @@ def thin_columns(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray
     n = cols.n_grid
     if not thinnable(cols):  # small, or columns of an older grid: all of them
         return cols, None
+    memo = cols.cache.setdefault("thin", {})  # the optimum's lines ask for the same gains again and again
+    key = (float(X), float(Y))
+    if key not in memo:
+        if len(memo) >= 8:
+            memo.pop(next(iter(memo)))
+        memo[key] = _thin(cols, *key)
+    return memo[key]
+
+
+def _thin(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray | None]:
+    n = cols.n_grid
     h = cols.data.allowed_spacing(float(X), float(Y))
     step = np.diff(cols.omega) / np.fmin(h[:-1], h[1:])
     measure = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(step), step, 0.0))])

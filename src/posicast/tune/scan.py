@@ -303,7 +303,7 @@ def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.nd
     polished, where = polish_ends(sub, flat_x, flat_ends, flat_v, upper, where=True)
     offsets = np.cumsum([0] + [2 * len(ends) for _, ends in total])
     if sel is not None:
-        named = [_grid_branch(e, w, sub, sel, cols) for e, w in zip(flat_ends, where)]
+        named = _grid_branches(flat_ends, where, sub, sel, cols)
         # polished again between the whole grid's neighbours of the extremum: as exact as without thinning
         polished = polish_ends(cols, flat_x, named, polished, upper)
         total = [(iv, [(named[offsets[i] + 2 * j], named[offsets[i] + 2 * j + 1]) for j in range(len(ends))])
@@ -311,18 +311,27 @@ def _polish_block(sub: Columns, sel: np.ndarray | None, cols: Columns, xb: np.nd
     return [polished[offsets[i] : offsets[i + 1]].reshape(-1, 2).copy() for i in range(len(total))], total
 
 
-def _grid_branch(end: IntervalEnd, w: float, sub: Columns, sel: np.ndarray, cols: Columns) -> IntervalEnd:
-    """A branch found on the thinned columns ``sub``, named by the whole grid's column nearest to ``w``
-    (its polished extremum); a limit column keeps its place among the limit columns."""
-    if not isinstance(end, Branch):
-        return end
-    if end.column >= sub.n_grid:
-        return Branch(cols.n_grid + end.column - sub.n_grid, end.constraint, end.root)
-    col = int(sel[end.column])
-    if math.isfinite(w):
-        j = int(np.clip(np.searchsorted(cols.omega, w), 1, cols.n_grid - 1))
-        col = j if abs(cols.omega[j] - w) < abs(cols.omega[j - 1] - w) else j - 1
-    return Branch(col, end.constraint, end.root)
+def _grid_branches(ends: list[IntervalEnd], where: np.ndarray, sub: Columns, sel: np.ndarray,
+                   cols: Columns) -> list[IntervalEnd]:
+    """Branches found on the thinned columns ``sub``, each named by the whole grid's column nearest to its
+    polished extremum ``where`` (the column it was found at where that is not finite); a limit column keeps
+    its place among the limit columns; other ends as they are.  (One binary search for all of them.)"""
+    out = list(ends)
+    k = [i for i, e in enumerate(ends) if isinstance(e, Branch)]
+    if not k:
+        return out
+    column = np.array([ends[i].column for i in k])
+    grid = column < sub.n_grid
+    named = np.where(grid, 0, cols.n_grid + column - sub.n_grid)
+    named[grid] = sel[column[grid]]
+    w = where[k]
+    near = grid & np.isfinite(w)
+    if near.any():
+        j = np.clip(np.searchsorted(cols.omega, w[near]), 1, cols.n_grid - 1)
+        named[near] = np.where(np.abs(cols.omega[j] - w[near]) < np.abs(cols.omega[j - 1] - w[near]), j, j - 1)
+    for i, c in zip(k, named.tolist()):
+        out[i] = Branch(c, ends[i].constraint, ends[i].root)
+    return out
 
 
 def _clip_to_window(problem: Problem, iv: np.ndarray, ends: Ends,
