@@ -212,14 +212,16 @@ def _polyline(c_along: np.ndarray, c_across: np.ndarray) -> _Polyline:
     return _Polyline(c_along, c_across, seg, np.minimum(p[seg], q[seg]), np.maximum(p[seg], q[seg]))
 
 
-def _curve_crossings(line: _Polyline, level: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True) -> tuple[np.ndarray, np.ndarray,
+                                                                                         np.ndarray]:
     """Where the polyline ``(line.along, line.across)`` crosses ``along = level``: (row, value across, column).
 
     A segment ``j`` crosses level ``i`` when ``(along[j] - level[i])`` and ``(along[j + 1] - level[i])``
     do not have the same strict sign, i.e. the level lies in the segment's closed span; segments across
     a jump (a pole of the curve) are skipped.  The levels are sorted once and each segment's span is
     located among them by binary search, so the cost grows with the number of segments and of
-    crossings, not with their product.  Sorted by row, then column.
+    crossings, not with their product.  Sorted by row, then column (``ordered``; else in no particular
+    order).
     """
     level = np.asarray(level, dtype=float)
     c_along, c_across, seg = line.along, line.across, line.seg
@@ -239,7 +241,10 @@ def _curve_crossings(line: _Polyline, level: np.ndarray) -> tuple[np.ndarray, np
         t = d0 / (d0 - d1)
     t = np.where(np.isfinite(t), t, 0.0)
     val = c_across[cols] + t * (c_across[cols + 1] - c_across[cols])
-    srt = np.lexsort((cols, rows))
+    if not ordered:
+        return rows, val, cols
+    # the columns are already ascending (segment by segment): a stable sort by row keeps them so
+    srt = np.argsort(rows, kind="stable")
     return rows[srt], val[srt], cols[srt]
 
 
@@ -319,16 +324,16 @@ def crossing_frequency(cols: Columns, x: float, col: int) -> tuple[float, float]
 def _curve_hits(cols: Columns, curve: ComplexCurve, lo: np.ndarray, hi: np.ndarray, ys: np.ndarray) -> np.ndarray:
     """Does the horizontal segment ``[lo, hi] x {y}`` cross the complex-root boundary?"""
     ok = curve.cross_ok
-    u, a, b = cols.u[ok], cols.a[ok], cols.b[ok]
     hit = np.zeros(ys.size, dtype=bool)
-    block = max(1, int(2_000_000 // max(1, u.size)))
+    block = max(1, int(2_000_000 // max(1, int(np.count_nonzero(ok)))))
     if curve.ok:
         for k in range(0, ys.size, block):
             sl = slice(k, k + block)
-            rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl])
+            rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl], ordered=False)
             inside = (xs >= lo[sl][rows]) & (xs <= hi[sl][rows])
             hit[sl] = np.bincount(rows[inside], minlength=ys[sl].size) > 0
         return hit
+    u, a, b = cols.u[ok], cols.a[ok], cols.b[ok]
     for k in range(0, ys.size, block):
         sl = slice(k, k + block)
         U = u[None, :] + ys[sl, None] * b[None, :]
