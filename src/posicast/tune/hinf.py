@@ -402,11 +402,13 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
         disc = np.multiply(B, B)
         np.multiply(A2, D, out=tmp)
         disc -= tmp
-        q = np.maximum(disc, 0.0)
-        np.sqrt(q, out=q)
-        np.negative(q, out=q, where=B < 0)  # q = -(B + sign(B) sqrt(disc)); NaN B: not an interval below
-        q += B
-        np.negative(q, out=q)
+        s = np.maximum(disc, 0.0)
+        np.sqrt(s, out=s)
+        # q = -(B + sign(B) s) = (s if B < 0 else -s) - B, the same number (rounding is symmetric);
+        # NaN B: NaN, not an interval below.  (A masked negation was the slowest line here.)
+        q = np.negative(s)
+        np.copyto(q, s, where=B < 0)
+        q -= B
         r1 = np.divide(D, q, out=tmp)
         r1[q == 0] = 0.0
         pos = np.isfinite(D)
@@ -417,8 +419,8 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
         lo = np.fmin(r1, r2, out=disc)
         hi = np.fmax(r1, r2, out=r2)
     notpos = ~pos
-    lo[notpos] = _INF
-    hi[notpos] = -_INF
+    np.copyto(lo, _INF, where=notpos)
+    np.copyto(hi, -_INF, where=notpos)
     out: list[tuple[ForbiddenPiece, np.ndarray | None]] = [(ForbiddenPiece(lo, hi, Root.SMALLER, Root.LARGER, pos),
                                                             None)]
     z = np.flatnonzero(A == 0)
