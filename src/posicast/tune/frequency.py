@@ -510,13 +510,30 @@ class FrequencyData:
         der = v["du"] + X * v["da"] + Y * v["db"]
         with np.errstate(divide="ignore", invalid="ignore"):
             h = self.delta * np.maximum(mag, self.r_min) / der
-            for i, c in enumerate(self.constraints):
-                W = v[f"W{i}"] / c.gamma
-                dW = v[f"dW{i}"] / c.gamma
-                nmag = v[f"nu{i}"] + X * v[f"na{i}"] + Y * v[f"nb{i}"]
-                nder = v[f"dnu{i}"] + X * v[f"dna{i}"] + Y * v[f"dnb{i}"]
+            finite = math.isfinite(X) and math.isfinite(Y)
+            for i, (W, dW, zero_gains, zero_dgains) in enumerate(self._constraint_magnitudes()):
+                # a term free of the gains (an S bound: na = nb = 0) is |nu| itself: |nu| + X 0 + Y 0 = |nu|
+                zero_gains, zero_dgains = zero_gains and finite, zero_dgains and finite
+                nmag = v[f"nu{i}"] if zero_gains else v[f"nu{i}"] + X * v[f"na{i}"] + Y * v[f"nb{i}"]
+                nder = v[f"dnu{i}"] if zero_dgains else v[f"dnu{i}"] + X * v[f"dna{i}"] + Y * v[f"dnb{i}"]
                 h = np.fmin(h, self.delta * np.maximum(np.maximum(W * nmag, mag), self.r_min) / (dW * nmag + W * nder))
         return np.where(np.isnan(h), np.inf, h)
+
+    def _constraint_magnitudes(self) -> list[tuple[np.ndarray, np.ndarray, bool, bool]]:
+        """Per constraint, on the current grid: ``|W| / gamma``, ``|W'| / gamma``, and whether the gains'
+        terms of its numerator (``na, nb``) and of their derivatives vanish at every column (made once per
+        grid, for :meth:`allowed_spacing`)."""
+        v = self._magnitudes()
+        cached = getattr(self, "_cmag_cache", None)
+        if cached is None or cached[0] is not v:
+            rows = []
+            for i, c in enumerate(self.constraints):
+                rows.append((v[f"W{i}"] / c.gamma, v[f"dW{i}"] / c.gamma,
+                             not (np.any(v[f"na{i}"]) or np.any(v[f"nb{i}"])),
+                             not (np.any(v[f"dna{i}"]) or np.any(v[f"dnb{i}"]))))
+            cached = (v, rows)
+            self._cmag_cache = cached
+        return cached[1]
 
     def _limit_columns(self) -> None:
         asyms = list(self._asym.values()) + [a for d in self._casym for a in d.values()]
