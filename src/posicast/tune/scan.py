@@ -255,18 +255,31 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
     decade = np.where(finite, decade, float(decade[finite].min()) if finite.any() else 0.0)
     if not thinnable(cols):  # every line needs every column: one group (the same numbers, fewer calls)
         decade = np.zeros_like(decade)
+    crossings = _crossings(problem, xs)
     for d in np.unique(decade):
         group = np.flatnonzero(decade == d)
         sub, sel = thin_columns(cols, float(mag[group].max()), y_top)
         block = max(1, int(2_000_000 // max(1, sub.u.size * max(1, sub.n_constraints))))
         for k in range(0, group.size, block):
             idx = group[k : k + block]
-            for i, line in zip(idx, _scan_block(problem, sub, sel, xs[idx])):
+            for i, line in zip(idx, _scan_block(problem, sub, sel, xs[idx], [crossings[j] for j in idx])):
                 out[i] = line
     return [ln for ln in out if ln is not None]
 
 
-def _scan_block(problem: Problem, sub: Columns, sel: np.ndarray | None, xb: np.ndarray) -> list[LineData]:
+def _crossings(problem: Problem, xs: np.ndarray) -> list[ComplexBreaks]:
+    """The complex-root crossings of every line ``xs`` on the whole grid: in one call where the curve form
+    is used (each line's crossings are the same as alone; issue #15: one pass over the curve's segments
+    instead of one per group of lines), else in blocks of lines that keep the (lines x columns) arrays small."""
+    cols = problem.columns
+    if problem.curve.ok:
+        return complex_breaks(cols, problem.curve, xs)
+    step = max(1, int(2_000_000 // max(1, cols.u.size)))
+    return [c for k in range(0, xs.size, step) for c in complex_breaks(cols, problem.curve, xs[k: k + step])]
+
+
+def _scan_block(problem: Problem, sub: Columns, sel: np.ndarray | None, xb: np.ndarray,
+                cbr: list[ComplexBreaks]) -> list[LineData]:
     """The lines ``xb``: H-infinity intervals on the columns ``sub`` (the grid's columns ``sel``; None: all)."""
     cols = problem.columns
     nc = cols.n_constraints
@@ -276,7 +289,6 @@ def _scan_block(problem: Problem, sub: Columns, sel: np.ndarray | None, xb: np.n
         for ci in range(nc):
             for i, (iv, _) in enumerate(complement(forbidden(sub, xb, [ci]))):
                 per[i].append(iv)
-    cbr = complex_breaks(cols, problem.curve, xb)
     polished, total = _polish_block(sub, sel, cols, xb, total)
     out = []
     for i, x in enumerate(xb):
