@@ -389,12 +389,12 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     say = (progress or Progress()).done
     report = Report("posicast demo report", out)
     report.intro = INTRO
-    user_first(report)
+    example = user_first(report)
     say("your data → your shaper, your plant → your loop")
     report.part("Printer calibration and identification",
                 "Identification of lightly damped modes against seed 002, and posicast's calibration on a synthetic "
                 "Klipper test and on every real resonance file in the repository beside Klipper's own pick.")
-    identification_section(report)
+    identification_section(report, calibrations=None if example is None else {REPOSITORY / EXAMPLE_LOG: example})
     say("identification and calibration")
     report.part("Seed reproductions",
                 "Every shaper kind of <code>posicast.design</code>, designed for two modes from the seed papers, "

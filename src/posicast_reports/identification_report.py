@@ -5,12 +5,12 @@ from __future__ import annotations
 import html
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import matplotlib.pyplot as plt
 import numpy as np
 
-from posicast.identification.calibration import calibrate
+from posicast.identification.calibration import Calibration, calibrate
 from posicast.identification.estimators import identify
 from posicast.identification.plots import calibration_plot
 from posicast.modes import Mode
@@ -52,8 +52,13 @@ def _pm(st: dict[str, Any], key: str) -> str:
     return "–" if not math.isfinite(b) else f"{100 * b:+.2f} ± {100 * s:.2f}"
 
 
-def identification_section(report: Report, trials: int = 30, acceptance_trials: int = 100) -> None:
-    """Add the identification section (issue #5) to a :class:`posicast_reports.html.Report`."""
+def identification_section(report: Report, trials: int = 30, acceptance_trials: int = 100,
+                           calibrations: Mapping[Path, Calibration] | None = None) -> None:
+    """Add the identification section (issue #5) to a :class:`posicast_reports.html.Report`.
+
+    ``calibrations``: calibrations already made of some of the real files (by resolved path), reused
+    instead of calibrating them again (the demo's first part calibrates one of them)."""
+    known = {Path(p).resolve(): c for p, c in (calibrations or {}).items()}
     report.section("Identification of lightly damped modes (seed 002 sections 3-4)")
     report.paragraph(
         "True system: seed 002 eq. 16, 28 Hz, ζ = 0.05, sampled exactly (zero-order hold) at 400 Hz; 12-bit "
@@ -155,7 +160,8 @@ def identification_section(report: Report, trials: int = 30, acceptance_trials: 
     if files:
         rows = []
         for path in files:
-            c = calibrate(path)
+            c = known.get(path.resolve())
+            c = calibrate(path) if c is None else c
             r = c.recommendation("klipper")
             ref, best = r.reference, r.best
             rows.append([path.name, ", ".join(f"{m.freq_hz:.1f}/{m.zeta:.2f}" for m in c.modes),
