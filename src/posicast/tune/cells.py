@@ -135,46 +135,24 @@ def interval_point(lo: float, hi: float) -> float:
 
 def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[tuple[int, int, float]]:
     """Pairs of wanted segments ``(ja, jb)`` of two adjacent lines that overlap in ``ky``, with a point
-    inside the certain part of the overlap, in increasing ``ky``.
-
-    The open overlaps of two partitions of the ``ky`` axis are the non-empty gaps between consecutive
-    breaks of both lines taken together (no break of either line lies inside an overlap), so the pairs
-    come from one merge of the two sorted break lists (issue #15: a delay loop's lines have thousands of
-    breaks; the same pairs as walking both lists segment by segment).
-    """
-    a, b = A.breaks, B.breaks
-    merged = np.sort(np.concatenate([a, b]), kind="stable")
-    lo = np.concatenate([[-math.inf], merged])
-    hi = np.concatenate([merged, [math.inf]])
-    k = np.flatnonzero(lo < hi)
-    lo, hi = lo[k], hi[k]
-    ja = np.searchsorted(a, lo, side="right")  # the segment of A holding (lo, hi): breaks <= lo
-    jb = np.searchsorted(b, lo, side="right")
-    keep = ma[ja] & mb[jb]
-    if not keep.any():
-        return []
-    lo, hi, ja, jb = lo[keep], hi[keep], ja[keep], jb[keep]
-    # the overlap's ends are breaks known to within their uncertainty: join only through its certain
-    # part (a skipped join costs one more spectrum check, never a wrong label)
-    e_lo = np.maximum(_errors_at(A, lo), _errors_at(B, lo))
-    e_hi = np.maximum(_errors_at(A, hi), _errors_at(B, hi))
-    lo, hi = lo + e_lo, hi - e_hi
-    ok = lo < hi
-    return [(int(i), int(j), interval_point(float(p), float(q)))
-            for i, j, p, q in zip(ja[ok], jb[ok], lo[ok], hi[ok])]
-
-
-def _errors_at(line: LineData, values: np.ndarray) -> np.ndarray:
-    """:meth:`LineData.error_at` at each of ``values``: the uncertainty of the break equal to it, else 0."""
-    br, err = line.breaks, line.break_err
-    out = np.zeros(values.shape)
-    if br.size == 0 or err.size == 0:
-        return out
-    k = np.searchsorted(br, values)  # the first equal one, if any
-    inside = k < br.size
-    kk = np.where(inside, k, 0)
-    hit = inside & (br[kk] == values) & np.isfinite(values)
-    out[hit] = err[kk[hit]]
+    inside the certain part of the overlap."""
+    out = []
+    ja = jb = 0
+    while ja < A.n_segments and jb < B.n_segments:
+        alo, ahi = A.segment_bounds(ja)
+        blo, bhi = B.segment_bounds(jb)
+        lo, hi = max(alo, blo), min(ahi, bhi)
+        if lo < hi and ma[ja] and mb[jb]:
+            # the overlap's ends are breaks known to within their uncertainty: join only through
+            # its certain part (a skipped join costs one more spectrum check, never a wrong label)
+            e_lo = max(A.error_at(lo), B.error_at(lo))
+            e_hi = max(A.error_at(hi), B.error_at(hi))
+            if lo + e_lo < hi - e_hi:
+                out.append((ja, jb, interval_point(lo + e_lo, hi - e_hi)))
+        if ahi <= bhi:
+            ja += 1
+        else:
+            jb += 1
     return out
 
 
