@@ -250,31 +250,37 @@ def _vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.nd
     np.exp(decay, out=decay)
     phase = Dm * s.imag.astype(real)[None, None, :]
     if real is np.float32 and n < 16:
-        terms = [_lane_sums(np.cos(phase), decay, Ar, m), _lane_sums(np.sin(phase, out=phase), decay, Ar, m, 0.0)]
+        # einsum's order: one running sum when the amplitudes are laid out by impulse (a 1-D A broadcast
+        # over the shapers), its 4-lane vector loop when they are contiguous per shaper
+        width = 1 if Ar.flags.f_contiguous and not Ar.flags.c_contiguous else 4
+        terms = [_lane_sums(np.cos(phase), decay, Ar, m, width),
+                 _lane_sums(np.sin(phase, out=phase), decay, Ar, m, width, last=0.0)]
     else:
         terms = _einsum_sums(phase, decay, Ar, m)
     S = np.hypot(*terms)  # [shapers, bins*zetas]
     return S.astype(float).reshape(T.shape[0], np.size(bins), np.size(zetas))
 
 
-def _lane_sums(x: np.ndarray, decay: np.ndarray, Ar: np.ndarray, m: int, last: float = 1.0) -> np.ndarray:
-    """``sum_i Ar[:, i] decay[:, i] x[:, i]`` over the impulses (``x``, ``decay``: ``[shapers, m, bins * zetas]``;
-    the impulses from ``m`` on contribute ``Ar * last``), for fewer than 16 impulses.
+def _lane_sums(x: np.ndarray, decay: np.ndarray, Ar: np.ndarray, m: int, width: int, last: float = 1.0
+               ) -> np.ndarray:
+    """``sum_i Ar[:, i] decay[:, i] x[:, i]`` over the impulses (``x``, ``decay``: ``[shapers, m, bins * zetas]``,
+    overwritten; the impulses from ``m`` on contribute ``Ar * last``), for fewer than 16 impulses.
 
-    Summed in the order numpy's ``einsum`` sums a short contiguous axis (its 4-lane vector loop: impulse
-    ``i`` into partial sum ``i mod 4``, then ``(p0 + p1) + (p2 + p3)``), on the long axis with no transposed
-    copies: the numbers of the ``einsum`` of :func:`_einsum_sums`, bit for bit, at half its cost (issue #15,
-    wave 6; a float32 rounding-level change of these sums flips a per-type pick of the demo's synthetic log).
+    Summed in the order numpy's ``einsum`` sums them in :func:`_einsum_sums` (impulse ``i`` into partial sum
+    ``i mod width``, then ``(p0 + p1) + (p2 + p3)``; ``width`` 1 or 4, which the amplitudes' memory layout
+    decides there), but on the long axis with no transposed copies: the same numbers, bit for bit, at about
+    half the cost (issue #15, wave 6: a float32 rounding-level change of these sums flips a per-type pick
+    of the demo's synthetic log).
     """
     x *= decay
-    x *= Ar[:, :m, None]  # the terms, in place (x is scratch)
+    x *= Ar[:, :m, None]  # the terms
     lanes: list[np.ndarray] = []
     for i in range(Ar.shape[1]):
         term = x[:, i] if i < m else Ar[:, i, None] * np.asarray(last, x.dtype)
-        if i < 4:
+        if i < width:
             lanes.append(term)
         else:
-            lanes[i % 4] += term  # a view into x: summed in place
+            lanes[i % width] += term  # a view into x: summed in place
     lanes += [np.zeros(1, x.dtype)] * (4 - len(lanes))
     out = lanes[0] + lanes[1]
     out += lanes[2] + lanes[3]

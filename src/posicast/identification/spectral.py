@@ -196,14 +196,15 @@ def _levenberg_marquardt(fun: Callable[[np.ndarray], tuple[np.ndarray, Callable[
         H = J.T @ J
         d = np.diag(H).copy()
         d[d <= 0] = 1.0
+        diag, rhs = np.diag(d), -g  # fixed over the damping trials
         improved = False
         for _ in range(12):
             try:
-                step = np.linalg.solve(H + lam * np.diag(d), -g)
+                step = np.linalg.solve(H + lam * diag, rhs)
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
-            xn = np.clip(x + step, lo, hi)
+            xn = np.minimum(np.maximum(x + step, lo), hi)
             rn, jac_n = fun(xn)
             cn = float(rn @ rn)
             if cn < cost:
@@ -301,7 +302,10 @@ def _solve_rows(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]
         det = a * d - b * c
         ok = np.isfinite(det) & (det != 0)
         det = np.where(ok, det, 1.0)
-        return np.stack([(d * rhs[:, 0] - b * rhs[:, 1]) / det, (a * rhs[:, 1] - c * rhs[:, 0]) / det], axis=1), ok
+        x = np.empty(rhs.shape)
+        x[:, 0] = (d * rhs[:, 0] - b * rhs[:, 1]) / det
+        x[:, 1] = (a * rhs[:, 1] - c * rhs[:, 0]) / det
+        return x, ok
     try:
         return np.linalg.solve(M, rhs[:, :, None])[:, :, 0], np.ones(M.shape[0], dtype=bool)
     except np.linalg.LinAlgError:

@@ -230,19 +230,23 @@ class SpectralModel:
     def _poles(self, theta: np.ndarray, product: bool = True) -> _Poles:
         """The poles ``theta`` on the sub-points: ``1 / prod_k |D_k|^2 / w_k^4`` (``product=False``: left at 1)
         and, per pole (rows), what the gradients need."""
-        w = np.array([math.exp(x) for x in theta[0::2].tolist()])  # math.exp: numpy's SIMD exp may differ by an ulp
-        z = np.asarray(theta[1::2], dtype=float)
-        w2 = (w * w)[:, None]
+        # the per-pole constants in Python floats (a few poles: numpy's per-call overhead, issue #15), the same
+        # operations in the same order; math.exp, as numpy's SIMD exp may differ by an ulp
+        zs = theta[1::2].tolist()
+        w = [math.exp(x) for x in theta[0::2].tolist()]
+        sq = [wk * wk for wk in w]
+        w2 = np.array(sq)[:, None]
         re = w2 - self.W2
         D2 = re * re
-        D2 += (4.0 * z * z * w * w)[:, None] * self.W2
+        D2 += np.array([4.0 * zk * zk * wk * wk for zk, wk in zip(zs, w)])[:, None] * self.W2
         inv_den = self._one
-        if product and w.size:
-            den = D2[0] / (w2[0] * w2[0])
-            for j in range(1, w.size):
-                den *= D2[j] / (w2[j] * w2[j])
+        if product and w:
+            den = D2[0] / (sq[0] * sq[0])
+            for j in range(1, len(w)):
+                den *= D2[j] / (sq[j] * sq[j])
             inv_den = 1.0 / den
-        return _Poles(inv_den, w2, z[:, None], re, D2)
+        z = np.array(zs)[:, None]
+        return _Poles(inv_den, w2, z, re, D2)
 
     def _gradients(self, p: _Poles) -> np.ndarray:
         """Per pole, ``d ln(|D_k|^2 / w_k^4) / d ln w_k`` and ``d ln(.) / d zeta_k``: rows ``(2 n, sub-points)``."""
@@ -382,7 +386,9 @@ class SpectralModel:
         As, scale = self._scaled(inv, k)
         bases = [self._basis(As[c], scale[c]) for c in range(C)]
         y = self._weighted()[0]
-        r = np.stack([y - b.Q @ b.proj for b in bases])
+        r = np.empty((C, y.size))
+        for c, b in enumerate(bases):
+            np.subtract(y, b.Q @ b.proj, out=r[c])
         return Batch(self, bases, inv, p, k, r)
 
 
