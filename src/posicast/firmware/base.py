@@ -158,14 +158,26 @@ class Firmware:
     # the only published measure; the other firmwares use it too, for comparison.
     def smoothing(self, A: np.ndarray, T: np.ndarray, accel: float | None = None) -> float | np.ndarray:
         """Klipper's smoothing (mm) of impulses ``(A, T)``; rows of a 2-D ``T`` give an array."""
-        c1, c2, c3 = smoothing_offsets(A, T)
+        return self._smoothing(smoothing_offsets(A, T), accel)
+
+    def max_accel(self, A: np.ndarray, T: np.ndarray) -> float | np.ndarray:
+        """Largest acceleration whose smoothing stays at :attr:`target_smoothing` (exact: it is linear in accel)."""
+        return self._max_accel(smoothing_offsets(A, T))
+
+    def smoothing_and_max_accel(self, A: np.ndarray, T: np.ndarray) -> tuple[float | np.ndarray, float | np.ndarray]:
+        """:meth:`smoothing` and :meth:`max_accel` of the same impulses, their offsets computed once (issue #15:
+        every scored frequency grid asks for both)."""
+        offsets = smoothing_offsets(A, T)
+        return self._smoothing(offsets), self._max_accel(offsets)
+
+    def _smoothing(self, offsets: tuple[Any, Any, Any], accel: float | None = None) -> float | np.ndarray:
+        c1, c2, c3 = offsets
         a = self.smoothing_accel if accel is None else accel
         out = np.maximum(math.sqrt(2.0) * (self.scv * np.asarray(c1) + 0.5 * a * np.asarray(c2)), 0.5 * a * np.asarray(c3))
         return float(out) if np.ndim(out) == 0 else out
 
-    def max_accel(self, A: np.ndarray, T: np.ndarray) -> float | np.ndarray:
-        """Largest acceleration whose smoothing stays at :attr:`target_smoothing` (exact: it is linear in accel)."""
-        c1, c2, c3 = (np.asarray(c, dtype=float) for c in smoothing_offsets(A, T))
+    def _max_accel(self, offsets: tuple[Any, Any, Any]) -> float | np.ndarray:
+        c1, c2, c3 = (np.asarray(c, dtype=float) for c in offsets)
         tgt = self.target_smoothing
         rest = np.maximum(tgt / math.sqrt(2.0) - self.scv * c1, 0.0)
         with np.errstate(divide="ignore"):

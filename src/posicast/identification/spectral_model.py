@@ -253,8 +253,14 @@ class SpectralModel:
         W2 = self.W2
         zw = p.z * p.w2
         G = np.empty((2 * p.w2.shape[0], W2.size))
-        G[0::2] = (4.0 * p.w2 * p.re + (8.0 * p.z * zw) * W2) / p.D2 - 4.0
-        G[1::2] = (8.0 * zw) * W2 / p.D2
+        # G[0::2] = (4 w2 re + 8 z zw W2) / D2 - 4 and G[1::2] = 8 zw W2 / D2, in place (the same operations)
+        gw, gz = G[0::2], G[1::2]
+        np.multiply(4.0 * p.w2, p.re, out=gw)
+        gw += (8.0 * p.z * zw) * W2
+        gw /= p.D2
+        gw -= 4.0
+        np.multiply(8.0 * zw, W2, out=gz)
+        gz /= p.D2
         return G
 
     def _scaled(self, inv_den: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
