@@ -255,8 +255,7 @@ def _levenberg_marquardt_batch(evaluate: Callable[[np.ndarray], Batch], X0: np.n
         for _ in range(12):
             if not pending:
                 break
-            lam_p = np.array([lam[idx[i]] for i in pending])
-            step, ok = _solve_rows(H[pending] + lam_p[:, None, None] * (d[pending, :, None] * eye), -g[pending])
+            step, ok = _damped_steps(H, g, d, pending, [lam[idx[i]] for i in pending], eye)
             sel = pending
             if not ok.all():
                 sel = [i for i, good in zip(pending, ok.tolist()) if good]
@@ -294,18 +293,29 @@ def _levenberg_marquardt_batch(evaluate: Callable[[np.ndarray], Batch], X0: np.n
     return X, np.array(cost)
 
 
-def _solve_rows(M: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``M[c] x[c] = rhs[c]`` for every row; ``ok`` is False where ``M[c]`` is singular (``np.linalg.solve``
-    would raise).  2 x 2 systems (a screened pole) by Cramer's rule."""
-    if M.shape[1] == 2:
-        a, b, c, d = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
-        det = a * d - b * c
-        ok = np.isfinite(det) & (det != 0)
-        det = np.where(ok, det, 1.0)
-        x = np.empty(rhs.shape)
-        x[:, 0] = (d * rhs[:, 0] - b * rhs[:, 1]) / det
-        x[:, 1] = (a * rhs[:, 1] - c * rhs[:, 0]) / det
-        return x, ok
+def _damped_steps(H: np.ndarray, g: np.ndarray, d: np.ndarray, rows: list[int], lams: list[float],
+                  eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Levenberg-Marquardt steps ``(H[c] + lam diag(d[c])) step = -g[c]`` of the chosen rows, and ``ok``:
+    False where the damped matrix is singular (``np.linalg.solve`` would raise).
+
+    Two parameters (a screened pole) by Cramer's rule in Python floats: the same operations as on arrays
+    (``H + lam (d eye)`` adds ``lam d`` on the diagonal and ``lam 0`` off it), without numpy's per-call cost
+    on a few 2 x 2 systems (issue #15, wave 6)."""
+    if H.shape[1] == 2:
+        steps, ok = [], []
+        for c, lam in zip(rows, lams):
+            (h00, h01), (h10, h11) = H[c].tolist()
+            d0, d1 = d[c].tolist()
+            r0, r1 = (-g[c]).tolist()
+            a, b, cc, dd = h00 + lam * d0, h01 + lam * (d0 * 0.0), h10 + lam * (d1 * 0.0), h11 + lam * d1
+            det = a * dd - b * cc
+            good = math.isfinite(det) and det != 0
+            det = det if good else 1.0
+            steps.append(((dd * r0 - b * r1) / det, (a * r1 - cc * r0) / det))
+            ok.append(good)
+        return np.array(steps), np.array(ok)
+    M = H[rows] + np.array(lams)[:, None, None] * (d[rows, :, None] * eye)
+    rhs = -g[rows]
     try:
         return np.linalg.solve(M, rhs[:, :, None])[:, :, 0], np.ones(M.shape[0], dtype=bool)
     except np.linalg.LinAlgError:
