@@ -109,3 +109,34 @@ def test_flat_spectrum_refusal_names_the_lowest_bin(tmp_path):
         f"{1.5625 * k:.1f},1.000e+03,1.000e+03,1.000e+03,3.000e+03\n" for k in range(130)))
     with pytest.raises(posicast.identification.NoModeFound, match=r"largest excess 1x at 6\.2 Hz"):
         posicast.calibrate(flat)
+
+
+@pytest.mark.parametrize("layout", ["shared", "per_shaper", "one_shaper"])
+def test_vibration_grid_sums_are_the_einsum_sums(layout):
+    """Issue #15 (wave 6): the impulse sums on the long axis are einsum's sums over the impulse axis, bit for
+    bit, whichever order the amplitudes' layout gives einsum (a rounding-level change flips a near-tie pick
+    of the demo's synthetic log); ``_einsum_sums`` is the wave-5 formulation, kept for many impulses."""
+    from posicast.firmware import base
+
+    rng = np.random.default_rng(5)
+    bins, zetas = np.sort(rng.uniform(5.0, 200.0, 37)), np.array([0.05, 0.1, 0.15])
+    for n in range(1, 16):
+        rows = 1 if layout == "one_shaper" else 40
+        T = np.sort(rng.random((rows, n)), axis=1) / rng.uniform(20.0, 150.0, (rows, 1))
+        A = rng.random(n) if layout != "per_shaper" else rng.random((rows, n))
+        A = np.broadcast_to(A / A.sum(axis=-1, keepdims=True), T.shape)
+        w = 2.0 * np.pi * bins[:, None]
+        sigma = (zetas[None, :] * w).ravel().astype(np.float32)
+        imag = (w * np.sqrt(1.0 - zetas[None, :] ** 2)).ravel().astype(np.float32)
+        D = (T - T.max(axis=1, keepdims=True)).astype(np.float32)
+        Ar = A.astype(np.float32)
+        m = n - 1 if n > 1 else n
+        decay = np.exp(D[:, :m, None] * sigma)
+        phase = D[:, :m, None] * imag
+        ref = base._einsum_sums(phase.copy(), decay, Ar, m)
+        width = 1 if Ar.flags.f_contiguous and not Ar.flags.c_contiguous else 4
+        got = [base._lane_sums(np.cos(phase), decay, Ar, m, width),
+               base._lane_sums(np.sin(phase), decay, Ar, m, width, last=0.0)]
+        assert np.array_equal(np.hypot(*got), np.hypot(*ref)), (layout, n)
+        assert np.array_equal(base._vibration_grid(A, T, bins, zetas).reshape(rows, -1),
+                              np.hypot(*ref).astype(float)), (layout, n)

@@ -158,14 +158,26 @@ class Firmware:
     # the only published measure; the other firmwares use it too, for comparison.
     def smoothing(self, A: np.ndarray, T: np.ndarray, accel: float | None = None) -> float | np.ndarray:
         """Klipper's smoothing (mm) of impulses ``(A, T)``; rows of a 2-D ``T`` give an array."""
-        c1, c2, c3 = smoothing_offsets(A, T)
+        return self._smoothing(smoothing_offsets(A, T), accel)
+
+    def max_accel(self, A: np.ndarray, T: np.ndarray) -> float | np.ndarray:
+        """Largest acceleration whose smoothing stays at :attr:`target_smoothing` (exact: it is linear in accel)."""
+        return self._max_accel(smoothing_offsets(A, T))
+
+    def smoothing_and_max_accel(self, A: np.ndarray, T: np.ndarray) -> tuple[float | np.ndarray, float | np.ndarray]:
+        """:meth:`smoothing` and :meth:`max_accel` of the same impulses, their offsets computed once (issue #15:
+        every scored frequency grid asks for both)."""
+        offsets = smoothing_offsets(A, T)
+        return self._smoothing(offsets), self._max_accel(offsets)
+
+    def _smoothing(self, offsets: tuple[Any, Any, Any], accel: float | None = None) -> float | np.ndarray:
+        c1, c2, c3 = offsets
         a = self.smoothing_accel if accel is None else accel
         out = np.maximum(math.sqrt(2.0) * (self.scv * np.asarray(c1) + 0.5 * a * np.asarray(c2)), 0.5 * a * np.asarray(c3))
         return float(out) if np.ndim(out) == 0 else out
 
-    def max_accel(self, A: np.ndarray, T: np.ndarray) -> float | np.ndarray:
-        """Largest acceleration whose smoothing stays at :attr:`target_smoothing` (exact: it is linear in accel)."""
-        c1, c2, c3 = (np.asarray(c, dtype=float) for c in smoothing_offsets(A, T))
+    def _max_accel(self, offsets: tuple[Any, Any, Any]) -> float | np.ndarray:
+        c1, c2, c3 = (np.asarray(c, dtype=float) for c in offsets)
         tgt = self.target_smoothing
         rest = np.maximum(tgt / math.sqrt(2.0) - self.scv * c1, 0.0)
         with np.errstate(divide="ignore"):
@@ -240,16 +252,58 @@ def _vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.nd
     D = (T - Tn).astype(real)  # [shapers, impulses], <= 0
     Ar = A.astype(real)
     # the exponentials laid out [shapers, impulses, bins * zetas] (the long axis last: numpy's vector loops,
-    # issue #15), then summed over the impulses as [shapers, bins * zetas, impulses].  The latest impulse
-    # (D = 0 when every shaper ends with it) contributes e^0 cos 0 = 1 and e^0 sin 0 = 0 exactly: its
-    # exponentials are not computed.  Same terms, same sums: the same numbers as one exponential per term.
+    # issue #15).  The latest impulse (D = 0 when every shaper ends with it) contributes e^0 cos 0 = 1 and
+    # e^0 sin 0 = 0 exactly: its exponentials are not computed.  Same terms, same sums: the same numbers as
+    # one exponential per term.
     n = D.shape[1]
     m = n - 1 if n > 1 and not np.any(D[:, -1]) else n
     Dm = D[:, :m, None]
     decay = Dm * sigma.astype(real)[None, None, :]
     np.exp(decay, out=decay)
     phase = Dm * s.imag.astype(real)[None, None, :]
-    full = np.empty((D.shape[0], s.size, n), real)  # reused: few large temporaries
+    if real is np.float32 and n < 16:
+        # einsum's order: one running sum when the amplitudes are laid out by impulse (a 1-D A broadcast
+        # over the shapers), its 4-lane vector loop when they are contiguous per shaper
+        width = 1 if Ar.flags.f_contiguous and not Ar.flags.c_contiguous else 4
+        terms = [_lane_sums(np.cos(phase), decay, Ar, m, width),
+                 _lane_sums(np.sin(phase, out=phase), decay, Ar, m, width, last=0.0)]
+    else:
+        terms = _einsum_sums(phase, decay, Ar, m)
+    S = np.hypot(*terms)  # [shapers, bins*zetas]
+    return S.astype(float).reshape(T.shape[0], np.size(bins), np.size(zetas))
+
+
+def _lane_sums(x: np.ndarray, decay: np.ndarray, Ar: np.ndarray, m: int, width: int, last: float = 1.0
+               ) -> np.ndarray:
+    """``sum_i Ar[:, i] decay[:, i] x[:, i]`` over the impulses (``x``, ``decay``: ``[shapers, m, bins * zetas]``,
+    overwritten; the impulses from ``m`` on contribute ``Ar * last``), for fewer than 16 impulses.
+
+    Summed in the order numpy's ``einsum`` sums them in :func:`_einsum_sums` (impulse ``i`` into partial sum
+    ``i mod width``, then ``(p0 + p1) + (p2 + p3)``; ``width`` 1 or 4, which the amplitudes' memory layout
+    decides there), but on the long axis with no transposed copies: the same numbers, bit for bit, at about
+    half the cost (issue #15, wave 6: a float32 rounding-level change of these sums flips a per-type pick
+    of the demo's synthetic log).
+    """
+    x *= decay
+    x *= Ar[:, :m, None]  # the terms
+    lanes: list[np.ndarray] = []
+    for i in range(Ar.shape[1]):
+        term = x[:, i] if i < m else Ar[:, i, None] * np.asarray(last, x.dtype)
+        if i < width:
+            lanes.append(term)
+        else:
+            lanes[i % width] += term  # a view into x: summed in place
+    lanes += [np.zeros(1, x.dtype)] * (4 - len(lanes))
+    out = lanes[0] + lanes[1]
+    out += lanes[2] + lanes[3]
+    return out
+
+
+def _einsum_sums(phase: np.ndarray, decay: np.ndarray, Ar: np.ndarray, m: int) -> list[np.ndarray]:
+    """The cosine and sine sums of :func:`_vibration_grid` by ``einsum`` over ``[shapers, bins * zetas,
+    impulses]`` (many impulses, a convolved shaper, or double precision); ``phase`` is overwritten."""
+    n = Ar.shape[1]
+    full = np.empty((phase.shape[0], phase.shape[2], n), phase.dtype)  # reused: few large temporaries
     full[:, :, m:] = 1.0
     x = np.cos(phase)
     x *= decay
@@ -260,8 +314,7 @@ def _vibration_grid(A: np.ndarray, T: np.ndarray, bins: np.ndarray, zetas: np.nd
     full[:, :, :m] = x.transpose(0, 2, 1)
     full[:, :, m:] = 0.0
     terms.append(np.einsum("fki,fi->fk", full, Ar))
-    S = np.hypot(*terms)  # [shapers, bins*zetas]
-    return S.astype(float).reshape(T.shape[0], np.size(bins), np.size(zetas))
+    return terms
 
 
 def _impulse_arrays(A: Any, T: Any) -> tuple[np.ndarray, np.ndarray]:

@@ -317,7 +317,7 @@ class _Scan:
         T = fw.times(T1[None, :] / freqs[:, None])  # what the firmware runs (Marlin: 1 ms)
         self.fw, self.st, self.damping, self.freqs = fw, st, damping, freqs
         self.vib = firmware_vibrations(A, T, datasets)
-        self.sm, self.ma = np.asarray(fw.smoothing(A, T)), np.asarray(fw.max_accel(A, T))
+        self.sm, self.ma = (np.asarray(x) for x in fw.smoothing_and_max_accel(A, T))
 
     def pick(self, i: int) -> KlipperPick:
         return KlipperPick(Setting(self.fw, self.st, float(self.freqs[i]), self.damping), float(self.vib[i]),

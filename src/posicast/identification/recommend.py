@@ -280,7 +280,7 @@ def _score_type(fw: Firmware, st: ShaperType, damping: float, freqs: np.ndarray,
             per[:, k] = bx.weight * vibration_grid(A, T, fb, zb).reshape(freqs.size, -1).max(axis=1)
         vib = per.max(axis=1)
         fv = np.full(freqs.size, np.nan)
-    return _Scored(st, damping, freqs, vib, per, fv, fw.smoothing(A, T), fw.max_accel(A, T))
+    return _Scored(st, damping, freqs, vib, per, fv, *fw.smoothing_and_max_accel(A, T))
 
 
 def _grid(st: ShaperType, boxes: list[ModeBox], rel_step: float = 0.012) -> np.ndarray:

@@ -89,12 +89,15 @@ def _excited_end(f: np.ndarray, P: np.ndarray) -> tuple[float, str]:
     step = float(np.median(np.diff(f)))
     w = max(2, int(round(6.0 / step)))  # 6 Hz on either side
     best, where = 0.0, math.nan
-    for i in range(w, f.size - w):
-        if f[i] < 60.0:
-            continue
-        drop = float(np.median(logp[i - w:i]) - np.median(logp[i:i + w]))
-        if drop > best:
-            best, where = drop, float(f[i])
+    # the median of every w-bin window at once (issue #15: was one np.median per bin); the drop at bin i is
+    # the window before it against the window from it, and the first largest drop from 60 Hz on is kept
+    if f.size > 2 * w:
+        med = np.median(np.lib.stride_tricks.sliding_window_view(logp, w), axis=1)
+        i = np.arange(w, f.size - w)
+        drop = np.where(f[i] >= 60.0, med[i - w] - med[i], -np.inf)
+        k = int(np.argmax(drop))
+        if drop[k] > best:
+            best, where = float(drop[k]), float(f[i[k]])
     if best > math.log(5.0):
         end = where - 2.0 * step  # the falling edge itself is not excited spectrum
         return end, f"the excitation ends near {where:.0f} Hz (the spectrum falls {math.exp(best):.0f}x there)"

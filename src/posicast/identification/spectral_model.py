@@ -230,27 +230,37 @@ class SpectralModel:
     def _poles(self, theta: np.ndarray, product: bool = True) -> _Poles:
         """The poles ``theta`` on the sub-points: ``1 / prod_k |D_k|^2 / w_k^4`` (``product=False``: left at 1)
         and, per pole (rows), what the gradients need."""
-        w = np.array([math.exp(float(x)) for x in theta[0::2]])
-        z = np.asarray(theta[1::2], dtype=float)
-        w2 = (w * w)[:, None]
+        # the per-pole constants in Python floats (a few poles: numpy's per-call overhead, issue #15), the same
+        # operations in the same order; math.exp, as numpy's SIMD exp may differ by an ulp
+        zs = theta[1::2].tolist()
+        w = [math.exp(x) for x in theta[0::2].tolist()]
+        sq = [wk * wk for wk in w]
+        w2 = np.array(sq)[:, None]
         re = w2 - self.W2
         D2 = re * re
-        D2 += (4.0 * z * z * w * w)[:, None] * self.W2
+        D2 += np.array([4.0 * zk * zk * wk * wk for zk, wk in zip(zs, w)])[:, None] * self.W2
         inv_den = self._one
-        if product and w.size:
-            den = D2[0] / (w2[0] * w2[0])
-            for j in range(1, w.size):
-                den *= D2[j] / (w2[j] * w2[j])
+        if product and w:
+            den = D2[0] / (sq[0] * sq[0])
+            for j in range(1, len(w)):
+                den *= D2[j] / (sq[j] * sq[j])
             inv_den = 1.0 / den
-        return _Poles(inv_den, w2, z[:, None], re, D2)
+        z = np.array(zs)[:, None]
+        return _Poles(inv_den, w2, z, re, D2)
 
     def _gradients(self, p: _Poles) -> np.ndarray:
         """Per pole, ``d ln(|D_k|^2 / w_k^4) / d ln w_k`` and ``d ln(.) / d zeta_k``: rows ``(2 n, sub-points)``."""
         W2 = self.W2
         zw = p.z * p.w2
         G = np.empty((2 * p.w2.shape[0], W2.size))
-        G[0::2] = (4.0 * p.w2 * p.re + (8.0 * p.z * zw) * W2) / p.D2 - 4.0
-        G[1::2] = (8.0 * zw) * W2 / p.D2
+        # G[0::2] = (4 w2 re + 8 z zw W2) / D2 - 4 and G[1::2] = 8 zw W2 / D2, in place (the same operations)
+        gw, gz = G[0::2], G[1::2]
+        np.multiply(4.0 * p.w2, p.re, out=gw)
+        gw += (8.0 * p.z * zw) * W2
+        gw /= p.D2
+        gw -= 4.0
+        np.multiply(8.0 * zw, W2, out=gz)
+        gz /= p.D2
         return G
 
     def _scaled(self, inv_den: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -291,8 +301,7 @@ class SpectralModel:
             if info == 0:
                 R = qr[:k] * _upper(k)
                 Rinv, info = lapack.dtrtri(R)
-                r1, r2 = R.ravel(), Rinv.ravel()
-                if info == 0 and float(r1 @ r1) * float(r2 @ r2) < 1e20:
+                if info == 0 and float(np.vdot(R, R)) * float(np.vdot(Rinv, Rinv)) < 1e20:
                     Q = lapack.dorgqr(qr, tau)[0]
                     return _Basis(Q, Q.T @ y, Rinv, scale)
         U, sv, Vt = np.linalg.svd(As, full_matrices=False)
@@ -383,7 +392,9 @@ class SpectralModel:
         As, scale = self._scaled(inv, k)
         bases = [self._basis(As[c], scale[c]) for c in range(C)]
         y = self._weighted()[0]
-        r = np.stack([y - b.Q @ b.proj for b in bases])
+        r = np.empty((C, y.size))
+        for c, b in enumerate(bases):
+            np.subtract(y, b.Q @ b.proj, out=r[c])
         return Batch(self, bases, inv, p, k, r)
 
 
@@ -393,19 +404,31 @@ class Batch:
     def __init__(self, model: SpectralModel, bases: list[_Basis], inv_den: np.ndarray, free: _Poles, k: int,
                  r: np.ndarray) -> None:
         self.model, self.bases, self.inv_den, self.free, self.k, self.r = model, bases, inv_den, free, k, r
-        self._G: np.ndarray | None = None
+
+    def _gradients(self, rows: np.ndarray) -> np.ndarray:
+        """The gradient rows of the chosen rows' free poles, ``(len(rows), 2 m, bins, nsub)``: only those rows'
+        (a fit asks for the Jacobians of the few rows whose step was accepted; issue #15)."""
+        model, p, C = self.model, self.free, self.r.shape[0]
+        m = p.w2.shape[0] // C
+        if rows.size < C:
+            poles = (rows[:, None] * m + np.arange(m)).ravel()
+            p = _Poles(p.inv_den, p.w2[poles], p.z[poles], p.re[poles], p.D2[poles])
+        return model._gradients(p).reshape(rows.size, 2 * m, model.f.size, model.nsub)
 
     def jacobian(self, rows: Sequence[int] | np.ndarray) -> np.ndarray:
         """The Jacobians ``(len(rows), bins, 2 m)`` of the chosen rows along their ``m`` free poles (Kaufman's
         columns, as :meth:`SpectralModel._pole_jacobian` row by row)."""
         model, rows = self.model, np.asarray(rows, dtype=int)
-        C, F, ns, k = self.r.shape[0], model.f.size, model.nsub, self.k
-        if self._G is None:
-            self._G = model._gradients(self.free).reshape(C, -1, F, ns)
-        Q = np.stack([self.bases[c].Q for c in rows]) if rows.size > 1 else self.bases[rows[0]].Q[None]
-        coef = np.stack([(self.bases[c].pinv @ self.bases[c].proj) / self.bases[c].scale for c in rows])
+        F, ns, k = model.f.size, model.nsub, self.k
+        G = self._gradients(rows)
+        if rows.size == 1:
+            b = self.bases[rows[0]]
+            Q, coef = b.Q[None], ((b.pinv @ b.proj) / b.scale)[None]
+        else:
+            Q = np.stack([self.bases[c].Q for c in rows])
+            coef = np.stack([(self.bases[c].pinv @ self.bases[c].proj) / self.bases[c].scale for c in rows])
         h = (coef[:, :k] @ model._fixed_columns(k).reshape(F * ns, k).T) * self.inv_den[rows]
-        D = np.einsum("cgbs,cbs->cbg", self._G[rows], h.reshape(-1, F, ns))
+        D = np.einsum("cgbs,cbs->cbg", G, h.reshape(-1, F, ns))
         D *= -model.weights[:, None]
         return -(D - Q @ (Q.transpose(0, 2, 1) @ D))
 

@@ -36,12 +36,8 @@ def response(r: Any, amps: Any, times: Any, sigma: float):
     Written with real arithmetic only so that it is complex-analytic in every
     argument (complex-step Jacobians).
     """
-    r = r[..., :, None]
     t = times[..., None, :]
-    dec = sigma * (t - t[..., -1:])
-    e = amps[..., None, :] * np.exp(_TWO_PI * r * dec)
-    c = np.cos(_TWO_PI * r * t)
-    s = np.sin(_TWO_PI * r * t)
+    dec, e, c, s = _terms(r[..., :, None], amps, t, sigma)
     re = (e * c).sum(-1)
     im = -(e * s).sum(-1)
     dre = _TWO_PI * (e * (dec * c - t * s)).sum(-1)
@@ -49,10 +45,20 @@ def response(r: Any, amps: Any, times: Any, sigma: float):
     return re, im, dre, dim
 
 
+def _terms(r: Any, amps: Any, t: Any, sigma: float) -> tuple[Any, Any, Any, Any]:
+    """Per frequency ratio ``r[..., m, 1]`` and impulse ``t[..., 1, n]``: the decay exponent's factor
+    ``sigma (t - t_n)``, the decayed amplitudes and the cosine and sine of the phase (computed once)."""
+    dec = sigma * (t - t[..., -1:])
+    e = amps[..., None, :] * np.exp(_TWO_PI * r * dec)
+    phase = _TWO_PI * r * t
+    return dec, e, np.cos(phase), np.sin(phase)
+
+
 def vibration(r: Any, amps: np.ndarray, times: np.ndarray, sigma: float) -> np.ndarray:
-    """Real V at frequency ratios ``r`` (1-D; times in units of T_d)."""
-    re, im, _, _ = response(np.atleast_1d(np.asarray(r, dtype=float)), amps, times, sigma)
-    return np.hypot(re, im)
+    """Real V at frequency ratios ``r`` (1-D; times in units of T_d): the values of :func:`response`, without
+    its r-derivatives (issue #15: the admissibility scan of every traced EI solution)."""
+    _, e, c, s = _terms(np.atleast_1d(np.asarray(r, dtype=float))[..., :, None], amps, times[..., None, :], sigma)
+    return np.hypot((e * c).sum(-1), -(e * s).sum(-1))
 
 
 # ---------------------------------------------------------------------------

@@ -135,6 +135,13 @@ def _tangent(jac: np.ndarray, tau_prev: np.ndarray) -> np.ndarray:
 
 def _correct(fj, yp: np.ndarray, tau: np.ndarray) -> np.ndarray | None:
     """Newton on ``F(y) = 0, tau . (y - yp) = 0``; None unless it converges fast."""
+    found = _correct_with_jacobian(fj, yp, tau)
+    return None if found is None else found[0]
+
+
+def _correct_with_jacobian(fj, yp: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`_correct`, and the Jacobian at the point it returns (the next tangent's: not evaluated again,
+    issue #15)."""
     y = yp.copy()
     for _ in range(7):
         f, jac = fj(y)
@@ -142,13 +149,13 @@ def _correct(fj, yp: np.ndarray, tau: np.ndarray) -> np.ndarray | None:
             return None
         g = np.append(f, tau @ (y - yp))
         if np.max(np.abs(f)) < _TOL and abs(g[-1]) < 1e-12:
-            return y
+            return y, jac
         dy = np.linalg.solve(np.vstack([jac, tau]), -g)
         if np.max(np.abs(dy)) > 0.25:
             return None
         y = y + dy
-    f, _ = fj(y)
-    return y if np.max(np.abs(f)) < _TOL else None
+    f, jac = fj(y)
+    return (y, jac) if np.max(np.abs(f)) < _TOL else None
 
 
 def _end_reason(prob: ShaperFamily, x: np.ndarray, why: str | None) -> str:
@@ -172,15 +179,16 @@ def _extend(prob: ShaperFamily, tr: _Trace, vtol: float, sigma: float) -> None:
             h, why = tr.h, None
             while True:
                 try:
-                    ynew = _correct(fj, y + h * tr.tau, tr.tau)
-                    if ynew is None:
+                    found = _correct_with_jacobian(fj, y + h * tr.tau, tr.tau)
+                    if found is None:
                         why = "the solver failed to converge"
-                    elif ynew[-1] < 0:
+                    elif found[0][-1] < 0:
                         why = "the solution curve turns back (a fold)"
                     else:
-                        why = invalid_reason(prob, ynew[:-1], ynew[-1], vtol)
+                        why = invalid_reason(prob, found[0][:-1], found[0][-1], vtol)
                     if why is None:
-                        tnew = _tangent(fj(ynew)[1], tr.tau)
+                        ynew = found[0]
+                        tnew = _tangent(found[1], tr.tau)
                         if tnew @ tr.tau < 0.9:  # too sharp a turn: smaller step
                             why = "the solver failed to converge"
                 except np.linalg.LinAlgError:
