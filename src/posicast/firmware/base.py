@@ -278,11 +278,12 @@ def _lane_sums(x: np.ndarray, decay: np.ndarray, Ar: np.ndarray, m: int, width: 
     """``sum_i Ar[:, i] decay[:, i] x[:, i]`` over the impulses (``x``, ``decay``: ``[shapers, m, bins * zetas]``,
     overwritten; the impulses from ``m`` on contribute ``Ar * last``), for fewer than 16 impulses.
 
-    Summed in the order numpy's ``einsum`` sums them in :func:`_einsum_sums` (impulse ``i`` into partial sum
-    ``i mod width``, then ``(p0 + p1) + (p2 + p3)``; ``width`` 1 or 4, which the amplitudes' memory layout
-    decides there), but on the long axis with no transposed copies: the same numbers, bit for bit, at about
-    half the cost (issue #15, wave 6: a float32 rounding-level change of these sums flips a per-type pick
-    of the demo's synthetic log).
+    Summed in the order numpy's ``einsum`` sums them in :func:`_einsum_sums` on numpy 2.4 for x86-64 (impulse
+    ``i`` into partial sum ``i mod width``, then ``(p0 + p1) + (p2 + p3)``; ``width`` 1 or 4, which the
+    amplitudes' memory layout decides there), but on the long axis with no transposed copies: the numbers
+    of wave 5, bit for bit, at about half the cost (issue #15, wave 6: a float32 rounding-level change of
+    these sums flips a per-type pick of the demo's synthetic log).  The order is now this function's own,
+    whatever einsum does on another numpy or CPU.
     """
     x *= decay
     x *= Ar[:, :m, None]  # the terms
