@@ -174,9 +174,10 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
     r = np.array([float(e[: n - k] @ e[k:]) for k in range(p_max + 1)]) / n
     if r[0] <= 0:
         return np.ones(1)
-    best, best_aic = np.ones(1), n * math.log(r[0])
+    best, best_aic = None, n * math.log(r[0])
+    lags = np.abs(np.subtract.outer(np.arange(p_max), np.arange(p_max)))  # R[i, j] = r[|i - j|] (Toeplitz)
     for p in range(1, p_max + 1):
-        R = np.array([[r[abs(i - j)] for j in range(p)] for i in range(p)])
+        R = r[lags[:p, :p]]
         try:
             phi = np.linalg.solve(R, r[1 : p + 1])
         except np.linalg.LinAlgError:
@@ -186,8 +187,8 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
             break
         aic = n * math.log(s2) + 2 * p
         if aic < best_aic:
-            best, best_aic = np.r_[1.0, -phi], aic
-    return best
+            best, best_aic = phi, aic
+    return np.ones(1) if best is None else np.concatenate(([1.0], -best))
 
 
 def _filtered(x: np.ndarray, a: np.ndarray) -> np.ndarray:
