@@ -221,6 +221,8 @@ class OEModel:
 
     def costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
         """The residual sum of squares at each of ``thetas`` (as :meth:`residual`, batched: the start's ranking)."""
+        if self.n == 1 and self._width() == 2 and self.u is not None and self.w is None:
+            return self._forced_costs(thetas)
         out = np.empty(len(thetas))
         N = self.y.size
         yw = self.y if self.w is None else self.y * self.w
@@ -251,6 +253,53 @@ class OEModel:
             pinv = (V * inv[:, None, :]) @ V.transpose(0, 2, 1)
             coef = (pinv @ ((X @ yw) / nrm)[:, :, None])[:, :, 0] / nrm
             r = yw - (coef[:, None, :] @ X)[:, 0, :]
+            out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
+        return out
+
+    def _forced_costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
+        """:meth:`costs` of one mode driven by the input, without nuisance terms (the start of every default fit):
+        the columns ``x1`` and ``z^-1 x1`` of each candidate, their 2 x 2 unit-norm Gram matrices inverted in
+        closed form (truncated as :func:`_gram_pinv`), the residual of each.
+
+        The same costs as the general path to rounding (they only rank the candidates); the general path's
+        per-candidate rows and batched eigen-decompositions were most of a short record's start (issue #15).
+        """
+        y, N = self.y, self.y.size
+        out = np.empty(len(thetas))
+        step = max(1, _BATCH // (3 * N))
+        for lo in range(0, len(thetas), step):
+            chunk = thetas[lo: lo + step]
+            X = np.empty((len(chunk), N))
+            for c, th in enumerate(chunk):
+                lw, zeta = th.tolist()
+                w, z = math.exp(lw), min(max(zeta, ZETA_MIN), ZETA_MAX)
+                X[c] = _forced(cmath.exp(complex(-z * w, w * math.sqrt(1.0 - z * z)) * self.h), self.u)
+            head = X[:, :-1]  # z^-1 x1 without its leading zero
+            g00 = np.einsum("ij,ij->i", X, X)
+            g11 = np.einsum("ij,ij->i", head, head)
+            g01 = np.einsum("ij,ij->i", X[:, 1:], head)
+            n0, n1 = np.sqrt(g00), np.sqrt(g11)
+            n0[n0 == 0], n1[n1 == 0] = 1.0, 1.0
+            a, c, b = g00 / (n0 * n0), g11 / (n1 * n1), g01 / (n0 * n1)  # unit-norm Gram [[a, b], [b, c]]
+            half, mean = np.hypot(0.5 * (a - c), b), 0.5 * (a + c)
+            big, small = mean + half, mean - half  # its eigenvalues
+            full = small > big * 1e-13
+            # the inverse where both eigenvalues are kept, else the top eigenvector's part only
+            vx, vy = np.where(np.abs(a - small) >= np.abs(c - small), a - small, b), np.where(
+                np.abs(a - small) >= np.abs(c - small), b, c - small)  # (big's eigenvector, unnormalised)
+            vn = np.hypot(vx, vy)
+            vn[vn == 0] = 1.0
+            vx, vy = vx / vn, vy / vn
+            top = np.where(big > 0, 1.0 / np.where(big > 0, big, 1.0), 0.0)
+            det = np.where(full, a * c - b * b, 1.0)
+            p00 = np.where(full, c / det, top * vx * vx)
+            p11 = np.where(full, a / det, top * vy * vy)
+            p01 = np.where(full, -b / det, top * vx * vy)
+            b0 = (X @ y) / n0
+            b1 = (head @ y[1:]) / n1
+            c0, c1 = (p00 * b0 + p01 * b1) / n0, (p01 * b0 + p11 * b1) / n1
+            r = y - c0[:, None] * X
+            r[:, 1:] -= c1[:, None] * head
             out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
         return out
 
