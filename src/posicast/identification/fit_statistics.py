@@ -129,25 +129,10 @@ def half_power_span(H: np.ndarray, j: int) -> tuple[int, int]:
     """The first indices left and right of the peak ``j`` where ``|H|`` is at or below ``H[j] / sqrt(2)`` (-3 dB;
     the array's ends when it never falls that far)."""
     half = H[j] / math.sqrt(2.0)
-    # the walk down each side, in windows of numpy comparisons (a walk of one sample per step in Python was
-    # most of the output-error start's peak picking; issue #15)
     a = j
-    width = 32
-    while a > 0:
-        lo = max(a - width, 0)
-        below = np.flatnonzero(~(H[lo: a + 1] > half))  # (NaN stops the walk, as it did)
-        if below.size:
-            a = lo + int(below[-1])
-            break
-        a, width = lo, 4 * width
+    while a > 0 and H[a] > half:
+        a -= 1
     b = j
-    width = 32
-    end = len(H) - 1
-    while b < end:
-        hi = min(b + width, end)
-        below = np.flatnonzero(~(H[b: hi + 1] > half))
-        if below.size:
-            b += int(below[0])
-            break
-        b, width = hi, 4 * width
+    while b < len(H) - 1 and H[b] > half:
+        b += 1
     return a, b

@@ -142,9 +142,13 @@ def wald_test(y: np.ndarray, X: np.ndarray, others: np.ndarray | None, residual:
     """
     if coloured:
         a = _whitening_filter(residual)
-        y, X = _filtered(y, a), _filtered(X, a)
-        others = None if others is None else _filtered(others, a)
-        residual = _filtered(residual, a)
+        # every column through the filter in one pass (the same products and sums per element as one call per
+        # array; issue #15), then each part back as its own contiguous array
+        k, m = X.shape[1], 0 if others is None else others.shape[1]
+        Z = _filtered(np.column_stack([y, X] + ([] if others is None else [others]) + [residual]), a)
+        y, X = Z[:, 0].copy(), _laid_out_as(Z[:, 1: 1 + k], X)
+        others = None if others is None else _laid_out_as(Z[:, 1 + k: 1 + k + m], others)
+        residual = Z[:, -1].copy()
     if others is not None and others.shape[1]:
         Q, _ = np.linalg.qr(others)
         X = X - Q @ (Q.T @ X)
@@ -189,6 +193,12 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
         if aic < best_aic:
             best, best_aic = phi, aic
     return np.ones(1) if best is None else np.concatenate(([1.0], -best))
+
+
+def _laid_out_as(part: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """A contiguous copy of ``part`` in the memory order of ``like`` (column sums and norms add in memory
+    order: the same order gives the same numbers)."""
+    return np.array(part, order="F" if like.flags.f_contiguous and not like.flags.c_contiguous else "C")
 
 
 def _filtered(x: np.ndarray, a: np.ndarray) -> np.ndarray:
