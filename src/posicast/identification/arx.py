@@ -13,6 +13,7 @@ from scipy import signal, special
 
 from .. import _validate as v
 from ..modes import Mode
+from . import _linalg
 from .fit_statistics import fit_percent, whiteness
 from .results import Identification, Interval
 from .significance import NoModeFound, wald_test
@@ -35,7 +36,7 @@ def fit_arx(u: np.ndarray, y: np.ndarray, sample_rate: float, nk: int = 0) -> Id
         raise ValueError(f"arx needs at least {k0 + 4} samples (seed 002 eq. 19), got {y.size}")
     A = np.column_stack([u[ks - nk], u[ks - nk - 1], -y[ks - 1], -y[ks - 2]])  # eq. 22
     yp = y[ks]
-    theta, *_ = np.linalg.lstsq(A, yp, rcond=None)  # eq. 24-25 (pseudo-inverse)
+    theta = _linalg.lstsq(A, yp)  # eq. 24-25 (pseudo-inverse; np.linalg.lstsq's solution)
     e = yp - A @ theta
     dof = max(ks.size - 4, 1)
     # does the input drive the output through this model?  F-test of its simulated output on the data

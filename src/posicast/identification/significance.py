@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import special
 
+from . import _linalg
+
 if TYPE_CHECKING:
     from ..modes import Mode
 
@@ -159,7 +161,7 @@ def wald_test(y: np.ndarray, X: np.ndarray, others: np.ndarray | None, residual:
     k = X.shape[1]
     if k == 0:
         return _adjust(0.0, 0, 1.0, cells, 0.0)
-    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    beta = _linalg.lstsq(X, y)
     fitted = X @ beta
     rss = max(float(y @ y) - float(fitted @ fitted), 0.0) if coloured else float(residual @ residual)
     explained = float(fitted @ fitted) / max(float(fitted @ fitted) + rss, 1e-300)
@@ -183,7 +185,7 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
     for p in range(1, p_max + 1):
         R = r[lags[:p, :p]]
         try:
-            phi = np.linalg.solve(R, r[1 : p + 1])
+            phi = _linalg.solve(R, r[1 : p + 1])
         except np.linalg.LinAlgError:
             break
         s2 = r[0] - float(phi @ r[1 : p + 1])

@@ -1,0 +1,58 @@
+"""numpy.linalg's ``solve`` and ``lstsq`` for the small real problems of the mode tests, without their wrappers.
+
+``np.linalg.solve`` of an 8 x 8 system spends three quarters of its time in argument handling
+(array wrapping, type promotion, shape checks) around one LAPACK call, and ``np.linalg.lstsq``
+a quarter; the whitening filter of every coloured mode test solves eight systems (issue #15).
+These functions call the same compiled numpy routines (``numpy.linalg._umath_linalg``) with the
+same signature and the same floating-point error handling, so the results are numpy's to the bit;
+when a numpy moves those routines, they fall back to ``np.linalg``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+try:  # the gufuncs np.linalg.solve / lstsq call (numpy >= 2.0)
+    from numpy.linalg import _umath_linalg as _ul
+
+    _SOLVE1, _LSTSQ = _ul.solve1, _ul.lstsq
+except (ImportError, AttributeError):  # pragma: no cover - another numpy
+    _SOLVE1 = _LSTSQ = None
+
+__all__ = ["solve", "lstsq"]
+
+_EPS = float(np.finfo(float).eps)
+
+
+def _singular(err: object, flag: object) -> None:
+    raise np.linalg.LinAlgError("Singular matrix")
+
+
+def _no_convergence(err: object, flag: object) -> None:
+    raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+
+def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve(a, b)`` for a real square ``a`` (float64) and a vector ``b`` (float64).
+
+    >>> solve(np.array([[2.0, 0.0], [0.0, 4.0]]), np.array([1.0, 1.0])).tolist()
+    [0.5, 0.25]
+    """
+    if _SOLVE1 is None:  # pragma: no cover
+        return np.linalg.solve(a, b)
+    with np.errstate(call=_singular, invalid="call", over="ignore", divide="ignore", under="ignore"):
+        return _SOLVE1(a, b, signature="dd->d")
+
+
+def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The solution of ``np.linalg.lstsq(a, b, rcond=None)`` for a real ``a`` (m, n), m >= 1, and a vector ``b``.
+
+    >>> lstsq(np.array([[1.0], [1.0]]), np.array([1.0, 3.0])).tolist()
+    [2.0]
+    """
+    if _LSTSQ is None:  # pragma: no cover
+        return np.linalg.lstsq(a, b, rcond=None)[0]
+    m, n = a.shape
+    with np.errstate(call=_no_convergence, invalid="call", over="ignore", divide="ignore", under="ignore"):
+        x = _LSTSQ(a, b[:, None], _EPS * max(n, m), signature="ddd->ddid")[0]
+    return x[:, 0].copy()
