@@ -47,8 +47,9 @@ def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The solution of ``np.linalg.lstsq(a, b, rcond=None)`` for a real ``a`` (m, n), m >= 1, and a vector ``b``.
 
-    >>> lstsq(np.array([[1.0], [1.0]]), np.array([1.0, 3.0])).tolist()
-    [2.0]
+    >>> a, b = np.array([[1.0, 0.5], [1.0, 2.0], [1.0, 3.0]]), np.array([1.0, 3.0, 2.0])
+    >>> lstsq(a, b).tolist() == np.linalg.lstsq(a, b, rcond=None)[0].tolist()
+    True
     """
     if _LSTSQ is None:  # pragma: no cover
         return np.linalg.lstsq(a, b, rcond=None)[0]
