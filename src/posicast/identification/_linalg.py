@@ -1,4 +1,5 @@
-"""numpy.linalg's ``solve`` and ``lstsq`` for the small real problems of the mode tests, without their wrappers.
+"""numpy.linalg's ``solve``, ``lstsq`` and ``eigvals`` for the small real problems of the mode tests and ARX,
+without their wrappers.
 
 ``np.linalg.solve`` of an 8 x 8 system spends three quarters of its time in argument handling
 (array wrapping, type promotion, shape checks) around one LAPACK call, and ``np.linalg.lstsq``
@@ -15,11 +16,11 @@ import numpy as np
 try:  # the gufuncs np.linalg.solve / lstsq call (numpy >= 2.0)
     from numpy.linalg import _umath_linalg as _ul
 
-    _SOLVE1, _LSTSQ = _ul.solve1, _ul.lstsq
+    _SOLVE1, _LSTSQ, _EIGVALS = _ul.solve1, _ul.lstsq, _ul.eigvals
 except (ImportError, AttributeError):  # pragma: no cover - another numpy
-    _SOLVE1 = _LSTSQ = None
+    _SOLVE1 = _LSTSQ = _EIGVALS = None
 
-__all__ = ["solve", "lstsq"]
+__all__ = ["solve", "lstsq", "eigvals"]
 
 _EPS = float(np.finfo(float).eps)
 
@@ -30,6 +31,10 @@ def _singular(err: object, flag: object) -> None:
 
 def _no_convergence(err: object, flag: object) -> None:
     raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
+
+
+def _no_eigenvalues(err: object, flag: object) -> None:
+    raise np.linalg.LinAlgError("Eigenvalues did not converge")
 
 
 def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -57,3 +62,19 @@ def lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     with np.errstate(call=_no_convergence, invalid="call", over="ignore", divide="ignore", under="ignore"):
         x = _LSTSQ(a, b[:, None], _EPS * max(n, m), signature="ddd->ddid")[0]
     return x[:, 0].copy()
+
+
+def eigvals(a: np.ndarray) -> np.ndarray:
+    """``np.linalg.eigvals(a)`` for a real square ``a`` (float64): complex eigenvalues, or real ones when every
+    imaginary part is 0.
+
+    >>> eigvals(np.array([[0.0, -1.0], [1.0, 0.0]])).tolist()
+    [1j, -1j]
+    """
+    if _EIGVALS is None:  # pragma: no cover
+        return np.linalg.eigvals(a)
+    if not np.isfinite(a).all():
+        raise np.linalg.LinAlgError("Array must not contain infs or NaNs")
+    with np.errstate(call=_no_eigenvalues, invalid="call", over="ignore", divide="ignore", under="ignore"):
+        w = _EIGVALS(a, signature="d->D")
+    return w.real.copy() if (w.imag == 0).all() else w

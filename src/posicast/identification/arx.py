@@ -86,4 +86,4 @@ def _poles(a1: float, a2: float) -> np.ndarray:
     calls per fit), the eigenvalues of the same companion matrix; a zero root when ``a2 == 0``, as np.roots."""
     if a2 == 0.0:
         return np.roots([1.0, a1, a2])
-    return np.linalg.eigvals(np.array([[-a1, -a2], [1.0, 0.0]]))
+    return _linalg.eigvals(np.array([[-a1, -a2], [1.0, 0.0]]))
