@@ -509,11 +509,12 @@ def _peaks(f: np.ndarray, H: np.ndarray, f_lo: float, f_hi: float, k: int) -> li
     else:
         prom = props["prominences"]
     out = []
-    fl = f.tolist()  # Python floats: the same arithmetic as on numpy's scalars, without their overhead (issue #15)
     for i in idx[np.argsort(prom)[::-1][:k]].tolist():
         j0, j1 = half_power_span(Hm, i)
-        zeta = (fl[j1] - fl[j0]) / (2.0 * fl[i]) if fl[i] > 0 else 0.05
-        out.append(PeakGuess(fl[i], min(max(zeta, 0.003), 0.5)))  # np.clip(zeta, 0.003, 0.5)
+        # Python floats: the same arithmetic as numpy's scalars, without their overhead (issue #15)
+        fi, f0, f1 = float(f[i]), float(f[j0]), float(f[j1])
+        zeta = (f1 - f0) / (2.0 * fi) if fi > 0 else 0.05
+        out.append(PeakGuess(fi, min(max(zeta, 0.003), 0.5)))  # np.clip(zeta, 0.003, 0.5)
     return out
 
 
