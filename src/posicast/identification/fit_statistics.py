@@ -83,16 +83,17 @@ def _hac(J: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def pole_intervals(theta: np.ndarray, J: np.ndarray, e: np.ndarray, n_lin: int,
-                   covariance: str, n_used: int | None = None) -> PoleIntervals:
+                   covariance: str, n_used: int | None = None, *, whiteness_p: float | None = None) -> PoleIntervals:
     """95 % intervals of ``theta = (ln omega_k, zeta_k)`` from the residual ``e`` and its Jacobian ``J``.
 
     ``covariance="auto"`` uses Newey-West (HAC) when the residual fails the whiteness
     test (p < 0.01), else Gauss-Newton ``s^2 (J^T J)^-1``; Student-t quantile on
-    ``n_used - n_lin - len(theta)`` degrees of freedom.
+    ``n_used - n_lin - len(theta)`` degrees of freedom.  ``whiteness_p``: ``whiteness(e)`` when the
+    caller has it already (the output-error fit tests its residual's whiteness first; issue #15).
     """
     n = e.size
     dof = max((n if n_used is None else n_used) - n_lin - theta.size, 1)
-    pw = whiteness(e)
+    pw = whiteness(e) if whiteness_p is None else whiteness_p
     use = covariance
     if covariance == "auto":
         use = "hac" if (math.isfinite(pw) and pw < 0.01) else "gauss-newton"

@@ -13,6 +13,7 @@ Modes the data do not demand are dropped (:mod:`.significance`).
 from __future__ import annotations
 
 import cmath
+import functools
 import math
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
@@ -220,6 +221,8 @@ class OEModel:
 
     def costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
         """The residual sum of squares at each of ``thetas`` (as :meth:`residual`, batched: the start's ranking)."""
+        if self.n == 1 and self._width() == 2 and self.u is not None and self.w is None:
+            return self._forced_costs(thetas)
         out = np.empty(len(thetas))
         N = self.y.size
         yw = self.y if self.w is None else self.y * self.w
@@ -250,6 +253,53 @@ class OEModel:
             pinv = (V * inv[:, None, :]) @ V.transpose(0, 2, 1)
             coef = (pinv @ ((X @ yw) / nrm)[:, :, None])[:, :, 0] / nrm
             r = yw - (coef[:, None, :] @ X)[:, 0, :]
+            out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
+        return out
+
+    def _forced_costs(self, thetas: Sequence[np.ndarray]) -> np.ndarray:
+        """:meth:`costs` of one mode driven by the input, without nuisance terms (the start of every default fit):
+        the columns ``x1`` and ``z^-1 x1`` of each candidate, their 2 x 2 unit-norm Gram matrices inverted in
+        closed form (truncated as :func:`_gram_pinv`), the residual of each.
+
+        The same costs as the general path to rounding (they only rank the candidates); the general path's
+        per-candidate rows and batched eigen-decompositions were most of a short record's start (issue #15).
+        """
+        y, N = self.y, self.y.size
+        out = np.empty(len(thetas))
+        step = max(1, _BATCH // (3 * N))
+        for lo in range(0, len(thetas), step):
+            chunk = thetas[lo: lo + step]
+            X = np.empty((len(chunk), N))
+            for c, th in enumerate(chunk):
+                lw, zeta = th.tolist()
+                w, z = math.exp(lw), min(max(zeta, ZETA_MIN), ZETA_MAX)
+                X[c] = _forced(cmath.exp(complex(-z * w, w * math.sqrt(1.0 - z * z)) * self.h), self.u)
+            head = X[:, :-1]  # z^-1 x1 without its leading zero
+            g00 = np.einsum("ij,ij->i", X, X)
+            g11 = np.einsum("ij,ij->i", head, head)
+            g01 = np.einsum("ij,ij->i", X[:, 1:], head)
+            n0, n1 = np.sqrt(g00), np.sqrt(g11)
+            n0[n0 == 0], n1[n1 == 0] = 1.0, 1.0
+            a, c, b = g00 / (n0 * n0), g11 / (n1 * n1), g01 / (n0 * n1)  # unit-norm Gram [[a, b], [b, c]]
+            half, mean = np.hypot(0.5 * (a - c), b), 0.5 * (a + c)
+            big, small = mean + half, mean - half  # its eigenvalues
+            full = small > big * 1e-13
+            # the inverse where both eigenvalues are kept, else the top eigenvector's part only
+            vx, vy = np.where(np.abs(a - small) >= np.abs(c - small), a - small, b), np.where(
+                np.abs(a - small) >= np.abs(c - small), b, c - small)  # (big's eigenvector, unnormalised)
+            vn = np.hypot(vx, vy)
+            vn[vn == 0] = 1.0
+            vx, vy = vx / vn, vy / vn
+            top = np.where(big > 0, 1.0 / np.where(big > 0, big, 1.0), 0.0)
+            det = np.where(full, a * c - b * b, 1.0)
+            p00 = np.where(full, c / det, top * vx * vx)
+            p11 = np.where(full, a / det, top * vy * vy)
+            p01 = np.where(full, -b / det, top * vx * vy)
+            b0 = (X @ y) / n0
+            b1 = (head @ y[1:]) / n1
+            c0, c1 = (p00 * b0 + p01 * b1) / n0, (p01 * b0 + p11 * b1) / n1
+            r = y - c0[:, None] * X
+            r[:, 1:] -= c1[:, None] * head
             out[lo: lo + len(chunk)] = np.einsum("ij,ij->i", r, r)
         return out
 
@@ -398,6 +448,21 @@ def _etfe(u: np.ndarray | None, y: np.ndarray, fs: float) -> tuple[np.ndarray, n
     smoothed ETFE) so that a noise spike does not outrank a resonance.
     """
     n = y.size
+    f, ker, nfft = _etfe_grid(n, fs)
+    Y2 = _smoothed_power(np.diff(y, prepend=y[0]), nfft, ker)
+    du = None if u is None else np.diff(u, prepend=0.0)
+    if du is None or not np.any(du):
+        return f, np.sqrt(Y2)
+    U2 = _input_power(du, nfft, ker)
+    H = np.sqrt(Y2 / np.maximum(U2, 1e-300))
+    H[U2 < 1e-4 * U2.max()] = np.nan
+    return f, H
+
+
+@functools.lru_cache(maxsize=32)
+def _etfe_grid(n: int, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """The ETFE's frequencies, smoothing kernel and FFT length for ``n`` samples at ``fs`` Hz (read-only; kept:
+    a Monte-Carlo study fits many records of one length, issue #15)."""
     # zero padding to a fine frequency grid; a long record's own grid is already finer than any peak
     # (the smoothing below is fixed in Hz), and 8x padding made this FFT a quarter of a 200k-sample fit
     pad = 8 if n <= _LONG_RECORD else 1
@@ -406,14 +471,32 @@ def _etfe(u: np.ndarray | None, y: np.ndarray, fs: float) -> tuple[np.ndarray, n
     w = max(1, int(round(3 * nfft / n)))
     ker = np.hanning(w + 2)[1:-1]
     ker /= ker.sum()
-    Y2 = np.convolve(np.abs(np.fft.rfft(np.diff(y, prepend=y[0]), nfft)) ** 2, ker, mode="same")
-    du = None if u is None else np.diff(u, prepend=0.0)
-    if du is None or not np.any(du):
-        return f, np.sqrt(Y2)
-    U2 = np.convolve(np.abs(np.fft.rfft(du, nfft)) ** 2, ker, mode="same")
-    H = np.sqrt(Y2 / np.maximum(U2, 1e-300))
-    H[U2 < 1e-4 * U2.max()] = np.nan
-    return f, H
+    f.flags.writeable = ker.flags.writeable = False
+    return f, ker, nfft
+
+
+def _smoothed_power(x: np.ndarray, nfft: int, ker: np.ndarray) -> np.ndarray:
+    """``|FFT(x, nfft)|^2`` smoothed by ``ker`` (the ETFE's auto-spectrum)."""
+    return np.convolve(np.abs(np.fft.rfft(x, nfft)) ** 2, ker, mode="same")
+
+
+#: (key, smoothed power) of the last input seen by :func:`_input_power` (one tuple: read and replaced whole).
+_last_input: list[tuple] = [(None, None)]
+
+
+def _input_power(du: np.ndarray, nfft: int, ker: np.ndarray) -> np.ndarray:
+    """:func:`_smoothed_power` of the differenced input; for a record of at most ``_LONG_RECORD`` samples the
+    last one is kept: repeated experiments (and a Monte-Carlo study) fit many records made with one command
+    (issue #15)."""
+    if du.size > _LONG_RECORD:
+        return _smoothed_power(du, nfft, ker)
+    key = (nfft, ker.size, du.tobytes())
+    last_key, power = _last_input[0]
+    if last_key != key:
+        power = _smoothed_power(du, nfft, ker)
+        power.flags.writeable = False
+        _last_input[0] = (key, power)
+    return power
 
 
 def _peaks(f: np.ndarray, H: np.ndarray, f_lo: float, f_hi: float, k: int) -> list[PeakGuess]:
@@ -426,10 +509,12 @@ def _peaks(f: np.ndarray, H: np.ndarray, f_lo: float, f_hi: float, k: int) -> li
     else:
         prom = props["prominences"]
     out = []
-    for i in idx[np.argsort(prom)[::-1][:k]]:
+    for i in idx[np.argsort(prom)[::-1][:k]].tolist():
         j0, j1 = half_power_span(Hm, i)
-        zeta = (f[j1] - f[j0]) / (2.0 * f[i]) if f[i] > 0 else 0.05
-        out.append(PeakGuess(float(f[i]), float(np.clip(zeta, 0.003, 0.5))))
+        # Python floats: the same arithmetic as numpy's scalars, without their overhead (issue #15)
+        fi, f0, f1 = float(f[i]), float(f[j0]), float(f[j1])
+        zeta = (f1 - f0) / (2.0 * fi) if fi > 0 else 0.05
+        out.append(PeakGuess(fi, min(max(zeta, 0.003), 0.5)))  # np.clip(zeta, 0.003, 0.5)
     return out
 
 
@@ -442,7 +527,7 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
     """
     f, H = _etfe(u, y, fs)
     cands = _peaks(f, H, 2.0 * fs / y.size, 0.45 * fs, max(8, 2 * n_modes))
-    cands += [(fp, zp) for fp in np.geomspace(2.0 * fs / y.size, 0.4 * fs, 12) for zp in (0.05,)]
+    cands += _grid_candidates(y.size, fs)
     short = model.head(_HEAD) if y.size > _LONG_RECORD else None
     chosen: list[tuple[float, float]] = []
     full_n = model.n
@@ -459,6 +544,13 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
         chosen.append(todo[int(np.argmin(costs))])  # the first of equal costs, as a strict < scan
     model.n = full_n
     return np.array([[math.log(2 * math.pi * a), b] for a, b in chosen]).ravel()
+
+
+@functools.lru_cache(maxsize=32)
+def _grid_candidates(n: int, fs: float) -> list[tuple[float, float]]:
+    """The start's fixed candidates: 12 frequencies log-spaced from 2 bins to 0.4 fs, zeta 0.05 (kept per record
+    length and rate; issue #15)."""
+    return [(fp, zp) for fp in np.geomspace(2.0 * fs / n, 0.4 * fs, 12).tolist() for zp in (0.05,)]
 
 
 def _costs(model: OEModel, chosen: list[tuple[float, float]], cands: list[tuple[float, float]], j: int) -> np.ndarray:
@@ -549,12 +641,16 @@ def _fit_fixed(u: np.ndarray | None, y: np.ndarray, fs: float, n_modes: int, cov
         th, res = _least_squares(model, th0, w_min)
         if best is None or res.cost < best[1].cost * (1 - 1e-9):
             best = (th, res)
-        if scale == 1.0 and _white(res):
-            break
+        if scale == 1.0:
+            first_res = res
+            first_p = whiteness(res.fun)  # the residual's whiteness: also the intervals' (issue #15: computed once)
+            if _white(first_p):
+                break
     th, res = best
     e, y_hat, n_lin = model.project(th)
     J = model.jacobian(th)
-    ivs, used, pw = pole_intervals(th, J, e, n_lin, covariance, model.n_used)
+    ivs, used, pw = pole_intervals(th, J, e, n_lin, covariance, model.n_used,
+                                   whiteness_p=first_p if best[1] is first_res else None)
     cells = search_cells(0.5 / (y.size * h), 0.49 / h, y.size * h)
     tests = model.mode_tests(th, e, n_lin, used == "hac", cells)
     order = np.argsort(th[0::2])
@@ -591,7 +687,6 @@ def significant_oe(u: np.ndarray | None, y: np.ndarray, sample_rate: float, n_mo
         n_modes -= 1
 
 
-def _white(res: TRFResult) -> bool:
-    """Accept the first start when its residual looks white (nothing left to explain)."""
-    p = whiteness(res.fun)
+def _white(p: float) -> bool:
+    """Accept the first start when its residual looks white (nothing left to explain): ``p`` is its whiteness."""
     return bool(math.isfinite(p) and p > 1e-3)

@@ -30,6 +30,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy import special
 
+from . import _linalg
+
 if TYPE_CHECKING:
     from ..modes import Mode
 
@@ -142,9 +144,13 @@ def wald_test(y: np.ndarray, X: np.ndarray, others: np.ndarray | None, residual:
     """
     if coloured:
         a = _whitening_filter(residual)
-        y, X = _filtered(y, a), _filtered(X, a)
-        others = None if others is None else _filtered(others, a)
-        residual = _filtered(residual, a)
+        # every column through the filter in one pass (the same products and sums per element as one call per
+        # array; issue #15), then each part back as its own contiguous array
+        k, m = X.shape[1], 0 if others is None else others.shape[1]
+        Z = _filtered(np.column_stack([y, X] + ([] if others is None else [others]) + [residual]), a)
+        y, X = Z[:, 0].copy(), _laid_out_as(Z[:, 1: 1 + k], X)
+        others = None if others is None else _laid_out_as(Z[:, 1 + k: 1 + k + m], others)
+        residual = Z[:, -1].copy()
     if others is not None and others.shape[1]:
         Q, _ = np.linalg.qr(others)
         X = X - Q @ (Q.T @ X)
@@ -155,7 +161,7 @@ def wald_test(y: np.ndarray, X: np.ndarray, others: np.ndarray | None, residual:
     k = X.shape[1]
     if k == 0:
         return _adjust(0.0, 0, 1.0, cells, 0.0)
-    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    beta = _linalg.lstsq(X, y)
     fitted = X @ beta
     rss = max(float(y @ y) - float(fitted @ fitted), 0.0) if coloured else float(residual @ residual)
     explained = float(fitted @ fitted) / max(float(fitted @ fitted) + rss, 1e-300)
@@ -174,11 +180,12 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
     r = np.array([float(e[: n - k] @ e[k:]) for k in range(p_max + 1)]) / n
     if r[0] <= 0:
         return np.ones(1)
-    best, best_aic = np.ones(1), n * math.log(r[0])
+    best, best_aic = None, n * math.log(r[0])
+    lags = np.abs(np.subtract.outer(np.arange(p_max), np.arange(p_max)))  # R[i, j] = r[|i - j|] (Toeplitz)
     for p in range(1, p_max + 1):
-        R = np.array([[r[abs(i - j)] for j in range(p)] for i in range(p)])
+        R = r[lags[:p, :p]]
         try:
-            phi = np.linalg.solve(R, r[1 : p + 1])
+            phi = _linalg.solve(R, r[1 : p + 1])
         except np.linalg.LinAlgError:
             break
         s2 = r[0] - float(phi @ r[1 : p + 1])
@@ -186,8 +193,14 @@ def _whitening_filter(e: np.ndarray, max_order: int = 8) -> np.ndarray:
             break
         aic = n * math.log(s2) + 2 * p
         if aic < best_aic:
-            best, best_aic = np.r_[1.0, -phi], aic
-    return best
+            best, best_aic = phi, aic
+    return np.ones(1) if best is None else np.concatenate(([1.0], -best))
+
+
+def _laid_out_as(part: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """A contiguous copy of ``part`` in the memory order of ``like`` (column sums and norms add in memory
+    order: the same order gives the same numbers)."""
+    return np.array(part, order="F" if like.flags.f_contiguous and not like.flags.c_contiguous else "C")
 
 
 def _filtered(x: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -180,17 +180,38 @@ def trust_region_reflective(fun: Callable[[np.ndarray], np.ndarray], jac: Callab
     return TRFResult(np.array(x), cost, f, nfev)
 
 
+# The small sums below are plain loops from 0.0, in index order: the same additions as the built-in sum() of
+# Python 3.11 over a generator (which starts from 0 and adds in order), at a third of its cost (issue #15).
+
+
 def _norm(a: Vec) -> float:
-    return math.sqrt(sum(t * t for t in a))
+    acc = 0.0
+    for t in a:
+        acc += t * t
+    return math.sqrt(acc)
 
 
 def _dot(a: Vec, b: Vec) -> float:
-    return sum(s * t for s, t in zip(a, b))
+    acc = 0.0
+    for s, t in zip(a, b):
+        acc += s * t
+    return acc
+
+
+def _diag_quad(a: Vec, diag: Vec) -> float:
+    """``a^T diag(diag) a``, each term ``(a_i diag_i) a_i``."""
+    acc = 0.0
+    for t, di in zip(a, diag):
+        acc += t * di * t
+    return acc
 
 
 def _quad(G: list[Vec], a: Vec, b: Vec) -> float:
     """``a^T G b``."""
-    return sum(a[i] * _dot(G[i], b) for i in range(len(a)))
+    acc = 0.0
+    for ai, Gi in zip(a, G):
+        acc += ai * _dot(Gi, b)
+    return acc
 
 
 def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[list[Vec], Vec]:
@@ -210,8 +231,16 @@ def _triangle(J: np.ndarray, f: np.ndarray) -> tuple[list[Vec], Vec]:
 def _normal(R: list[Vec], qf: Vec) -> tuple[Vec, list[Vec]]:
     """``J^T f = R^T Q^T f`` and ``J^T J = R^T R``."""
     n = len(qf)
-    g = [sum(R[k][i] * qf[k] for k in range(n)) for i in range(n)]
-    return g, [[sum(R[k][i] * R[k][j] for k in range(n)) for j in range(n)] for i in range(n)]
+    g = [0.0] * n
+    G = [[0.0] * n for _ in range(n)]
+    for k in range(n):
+        Rk, fk = R[k], qf[k]
+        for i in range(n):
+            g[i] += Rk[i] * fk
+            Gi, rki = G[i], Rk[i]
+            for j in range(n):
+                Gi[j] += rki * Rk[j]
+    return g, G
 
 
 def _cl_scaling(x: Vec, g: Vec, lb: Vec, ub: Vec) -> tuple[Vec, Vec]:
@@ -249,7 +278,10 @@ def _solve_lsq_trust_region(n: int, m: int, uf: Vec, s: Vec, V: list[Vec], Delta
     def phi_and_derivative(alpha: float) -> tuple[float, float]:
         denom = [si * si + alpha for si in s]
         p_norm = _norm([a / b for a, b in zip(suf, denom)])
-        return p_norm - Delta, -sum(a * a / b ** 3 for a, b in zip(suf, denom)) / p_norm
+        acc = 0.0
+        for a, b in zip(suf, denom):
+            acc += a * a / b ** 3
+        return p_norm - Delta, -acc / p_norm
 
     def along(c: Vec) -> Vec:  # -V c
         return [-_dot(V[i], c) for i in range(n)]
@@ -286,7 +318,7 @@ def _solve_lsq_trust_region(n: int, m: int, uf: Vec, s: Vec, V: list[Vec], Delta
 
 def _quadratic(G: list[Vec], g: Vec, s: Vec, diag: Vec) -> float:
     """``0.5 s^T (J^T J + diag) s + g^T s`` (scipy ``evaluate_quadratic``, with ``G = J^T J``)."""
-    return 0.5 * (_quad(G, s, s) + sum(si * di * si for si, di in zip(s, diag))) + _dot(s, g)
+    return 0.5 * (_quad(G, s, s) + _diag_quad(s, diag)) + _dot(s, g)
 
 
 def _step_to_bound(x: Vec, s: Vec, lb: Vec, ub: Vec) -> tuple[float, Vec]:
@@ -321,7 +353,7 @@ def _select_step(x: Vec, G_h: list[Vec], diag_h: Vec, g_h: Vec, p: Vec, p_h: Vec
         r_stride_l, r_stride_u = 0.0, -1.0
     if r_stride_l <= r_stride_u:
         pd = [p_h[i] * diag_h[i] for i in range(n)]
-        a = 0.5 * (_quad(G_h, r_h, r_h) + sum(t * di * t for t, di in zip(r_h, diag_h)))
+        a = 0.5 * (_quad(G_h, r_h, r_h) + _diag_quad(r_h, diag_h))
         b = _dot(r_h, g_h) + _quad(G_h, p_h, r_h) + _dot(pd, r_h)
         c = 0.5 * _quad(G_h, p_h, p_h) + _dot(g_h, p_h) + 0.5 * _dot(pd, p_h)
         r_stride, r_value = _minimize_1d(a, b, r_stride_l, r_stride_u, c)
@@ -337,7 +369,7 @@ def _select_step(x: Vec, G_h: list[Vec], diag_h: Vec, g_h: Vec, p: Vec, p_h: Vec
     to_tr = Delta / _norm(ag_h)
     to_bound, _ = _step_to_bound(x, ag, lb, ub)
     ag_stride = theta * to_bound if to_bound < to_tr else to_tr
-    a = 0.5 * (_quad(G_h, ag_h, ag_h) + sum(t * di * t for t, di in zip(ag_h, diag_h)))
+    a = 0.5 * (_quad(G_h, ag_h, ag_h) + _diag_quad(ag_h, diag_h))
     b = _dot(g_h, ag_h)
     ag_stride, ag_value = _minimize_1d(a, b, 0.0, ag_stride, 0.0)
     ag_h = [t * ag_stride for t in ag_h]
