@@ -547,10 +547,10 @@ def _start(model: OEModel, u: np.ndarray | None, y: np.ndarray, fs: float, n_mod
 
 
 @functools.lru_cache(maxsize=32)
-def _grid_candidates(n: int, fs: float) -> list[tuple[float, float]]:
+def _grid_candidates(n: int, fs: float) -> tuple[tuple[float, float], ...]:
     """The start's fixed candidates: 12 frequencies log-spaced from 2 bins to 0.4 fs, zeta 0.05 (kept per record
-    length and rate; issue #15)."""
-    return [(fp, zp) for fp in np.geomspace(2.0 * fs / n, 0.4 * fs, 12).tolist() for zp in (0.05,)]
+    length and rate, immutable; issue #15)."""
+    return tuple((fp, zp) for fp in np.geomspace(2.0 * fs / n, 0.4 * fs, 12).tolist() for zp in (0.05,))
 
 
 def _costs(model: OEModel, chosen: list[tuple[float, float]], cands: list[tuple[float, float]], j: int) -> np.ndarray:
