@@ -375,6 +375,11 @@ class _Search:
     up_t: list[BranchTracker]
     lo_t: list[BranchTracker]
 
+    def state(self) -> tuple[float, float, tuple[float, float, IntervalEnd], int, int]:
+        """What the next step depends on: the bracket, the best point and the trackers (which only
+        grow; each tracker's value depends on ``x`` alone)."""
+        return self.lo_x, self.hi_x, self.best, len(self.up_t), len(self.lo_t)
+
 
 def exact_optimum(problem: Problem, region: Region, i: int, x0: float, y0: float, bottom: float,
                   end: IntervalEnd, probe: Probe | None = None) -> tuple[float, float, IntervalEnd]:
@@ -405,8 +410,12 @@ def exact_optimum(problem: Problem, region: Region, i: int, x0: float, y0: float
     real_floor = _real_floor(problem, anchor)
     search = _Search(lo_x, hi_x, best, _trackers(problem, uppers, True), _trackers(problem, lowers, False))
     for _ in range(8):
-        if not search.up_t or not search.hi_x > search.lo_x or not _search_step(problem, region, anchor, search,
-                                                                                  real_floor):
+        if not search.up_t or not search.hi_x > search.lo_x:
+            break
+        before = search.state()
+        if not _search_step(problem, region, anchor, search, real_floor) or search.state() == before:
+            # a step that changed nothing would be repeated exactly (the same trackers' optimum, the same
+            # exact line) up to the step limit: stop there, with the same answer (issue #15)
             break
     return search.best
 

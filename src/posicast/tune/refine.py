@@ -20,7 +20,8 @@ import numpy as np
 from .frequency import Columns
 from .hinf import Branch, IntervalEnd, quadratic_root
 
-__all__ = ["root_value", "root_values", "roots_at", "polish_ends", "parabola_vertex", "exact_end", "forbidden_window"]
+__all__ = ["root_value", "root_values", "roots_at", "polish_ends", "parabola_vertex", "exact_end", "exact_ends",
+           "forbidden_window"]
 
 _INF = math.inf
 
@@ -126,35 +127,73 @@ def exact_end(cols: Columns, x: float, end: Branch, upper: bool, rounds: int = 7
     Zooms in on the extremum between the column's neighbours: each round
     evaluates the exact frequency response at 9 points and keeps the two
     intervals around the best (the bracket shrinks 4x per round), then a
-    parabola through the last three points.
+    parabola through the last three points.  (:func:`exact_ends` for several.)
     """
-    col, ci, root = end
-    if col >= cols.n_grid:  # a limit column: no frequency to refine
-        return root_value(cols, x, col, ci, root), math.inf
-    lo = float(cols.omega[max(col - 1, 0)])
-    hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
+    return exact_ends(cols, x, [end], upper, rounds)[0]
+
+
+def exact_ends(cols: Columns, x: float, ends: Sequence[Branch], upper: bool,
+               rounds: int = 7) -> list[tuple[float, float]]:
+    """:func:`exact_end` of several ends on one line ``x``, in lockstep: each round evaluates the exact
+    frequency response once for every end's 9 points (issue #15: the response's per-call cost dominated
+    when each branch zoomed in alone).  Each end's numbers are those :func:`exact_end` gives it alone
+    (the response is evaluated point by point)."""
     sign = 1.0 if upper else -1.0
-    base = root_value(cols, x, col, ci, root)
-    best_v, best_w = (sign * base if math.isfinite(base) else math.inf), float(cols.omega[col])
-    if not hi > lo:
-        return base, best_w
-    for _ in range(rounds):
-        w = np.linspace(lo, hi, 9)
-        f = sign * roots_at(cols, x, cols.data.values(w), ci, root)
+    out: list[tuple[float, float]] = [(math.nan, math.nan)] * len(ends)
+    live: list[_Zoom] = []
+    for k, (col, ci, root) in enumerate(ends):
+        if col >= cols.n_grid:  # a limit column: no frequency to refine
+            out[k] = (root_value(cols, x, col, ci, root), math.inf)
+            continue
+        lo = float(cols.omega[max(col - 1, 0)])
+        hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
+        base = root_value(cols, x, col, ci, root)
+        best_w = float(cols.omega[col])
+        if not hi > lo:
+            out[k] = (base, best_w)
+            continue
+        live.append(_Zoom(k, ci, root, lo, hi, sign * base if math.isfinite(base) else math.inf, best_w))
+    for _ in range(rounds if live else 0):
+        ws = [np.linspace(z.lo, z.hi, 9) for z in live]
+        vals = cols.data.values(np.concatenate(ws))
+        for r, (z, w) in enumerate(zip(live, ws)):
+            f = sign * roots_at(cols, x, _rows(vals, z.ci, slice(9 * r, 9 * r + 9)), z.ci, z.root)
+            z.step(w, f)
+    for z in live:
+        out[z.k] = (sign * z.best_v, z.best_w)
+    return out
+
+
+def _rows(vals: dict[str, np.ndarray], ci: int, rows: slice) -> dict[str, np.ndarray]:
+    """The arrays :func:`roots_at` reads for constraint ``ci``, at ``rows``."""
+    keys = ("u", "a", "b", f"W{ci}", f"nu{ci}", f"na{ci}", f"nb{ci}")
+    return {k: vals[k][rows] for k in keys}
+
+
+class _Zoom:
+    """One end's bracket ``[lo, hi]`` and best value so far in :func:`exact_ends`."""
+
+    def __init__(self, k: int, ci: int, root: int, lo: float, hi: float, best_v: float, best_w: float) -> None:
+        self.k, self.ci, self.root = k, ci, root
+        self.lo, self.hi = lo, hi
+        self.best_v, self.best_w = best_v, best_w
+
+    def step(self, w: np.ndarray, f: np.ndarray) -> None:
+        """One round: ``f`` (sign-adjusted roots at the 9 points ``w``) narrows the bracket."""
         f = np.where(np.isfinite(f), f, math.inf)
         k = int(np.argmin(f))
-        if f[k] < best_v:
-            best_v, best_w = float(f[k]), float(w[k])
-        lo, hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
+        if f[k] < self.best_v:
+            self.best_v, self.best_w = float(f[k]), float(w[k])
+        self.lo, self.hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
         if 0 < k < 8 and np.all(np.isfinite(f[k - 1 : k + 2])):
             f0, f1, f2 = f[k - 1 : k + 2]
             corr = parabola_vertex(f0, f1, f2)
             if corr is not None:
                 vertex = f1 - corr
-                if vertex < best_v:
+                if vertex < self.best_v:
                     h = w[1] - w[0]
-                    best_v, best_w = float(vertex), float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
-    return sign * best_v, best_w
+                    self.best_v = float(vertex)
+                    self.best_w = float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
 
 
 # ---------------------------------------------------------------------- a window narrower than the grid
