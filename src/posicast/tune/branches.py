@@ -17,7 +17,7 @@ import numpy as np
 
 from .frequency import Columns
 from .hinf import Branch, IntervalEnd, line_forbidden
-from .refine import exact_end, exact_ends, parabola_vertex, root_values, roots_at
+from .refine import RootsOver, exact_end, exact_ends, parabola_vertex, root_values
 
 __all__ = ["active_branches", "branch_value", "branch_values", "BranchTracker", "is_tracked", "exact_top",
            "exact_bottom"]
@@ -111,26 +111,27 @@ class BranchTracker:
         self.reach = reach
         self.n = n
         self.sign = 1.0 if upper else -1.0
-        self._cache: dict[int, tuple[int, int, dict[str, np.ndarray]]] = {}
+        self._cache: dict[int, tuple[int, int, dict[str, np.ndarray], RootsOver]] = {}
         self._load(self.origin)
 
     def _load(self, col: int) -> None:
-        """Centre the window on grid column ``col`` (its values evaluated once per column)."""
+        """Centre the window on grid column ``col`` (its values evaluated once per column, and what of
+        the branch's root does not depend on ``x``)."""
         if col not in self._cache:
             lo_c, hi_c = max(col - self.reach, 0), min(col + self.reach, self.cols.n_grid - 1)
             w = np.linspace(float(self.cols.omega[lo_c]), float(self.cols.omega[hi_c]), self.n)
-            self._cache[col] = (lo_c, hi_c, self.cols.data.values(w))
+            vals = self.cols.data.values(w)
+            self._cache[col] = (lo_c, hi_c, vals, RootsOver(self.cols, vals, *self.key))
         self.col = col
-        self.lo, self.hi, self.vals = self._cache[col]
+        self.lo, self.hi, self.vals, self.roots = self._cache[col]
 
     def __call__(self, x: float) -> float:
         # every call starts at the branch's own window, and follows a drifting extremum at
         # most two windows away (a slope toward another branch is not followed for good)
-        ci, root = self.key
         n, reach, ng = self.n, self.reach, self.cols.n_grid
         self._load(self.origin)
         for _ in range(3):
-            f = self.sign * roots_at(self.cols, x, self.vals, ci, root)
+            f = self.sign * self.roots(x)  # = roots_at(self.cols, x, self.vals, *self.key)
             f = np.where(np.isfinite(f), f, _INF)
             k = int(np.argmin(f))
             if not np.isfinite(f[k]):

@@ -20,7 +20,7 @@ import numpy as np
 from .frequency import Columns
 from .hinf import Branch, IntervalEnd, quadratic_root
 
-__all__ = ["root_value", "root_values", "roots_at", "polish_ends", "parabola_vertex", "exact_end", "exact_ends",
+__all__ = ["root_value", "root_values", "roots_at", "RootsOver", "polish_ends", "parabola_vertex", "exact_end", "exact_ends",
            "forbidden_window"]
 
 _INF = math.inf
@@ -48,6 +48,41 @@ def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root
     w2 = np.abs(vals[f"W{ci}"]) ** 2 / cols.data.constraints[ci].gamma ** 2
     return quadratic_root(vals["u"] + x * vals["a"], vals[f"nu{ci}"] + x * vals[f"na{ci}"], vals["b"],
                           vals[f"nb{ci}"], w2, root)
+
+
+class RootsOver:
+    """``x -> roots_at(cols, x, vals, ci, root)`` on fixed frequencies ``vals``: what does not depend on
+    ``x`` (the weight, the quadratic's leading coefficient, the conjugates) is computed once.
+
+    Issue #15: a :class:`~posicast.tune.branches.BranchTracker` asks for hundreds of ``x`` on the same
+    window.  The operations that remain are :func:`~posicast.tune.hinf.quadratic_root`'s, in its order,
+    so the numbers are the same (the root not asked for is not computed).
+    """
+
+    def __init__(self, cols: Columns, vals: dict[str, np.ndarray], ci: int, root: int) -> None:
+        self.u, self.a = vals["u"], vals["a"]
+        self.nu, self.na = vals[f"nu{ci}"], vals[f"na{ci}"]
+        b, nb = vals["b"], vals[f"nb{ci}"]
+        self.w2 = np.abs(vals[f"W{ci}"]) ** 2 / cols.data.constraints[ci].gamma ** 2
+        self.A = np.abs(b) ** 2 - self.w2 * np.abs(nb) ** 2
+        self.conj_b, self.conj_nb = np.conj(b), np.conj(nb)
+        self.root = int(root)
+        self.degenerate = bool(np.any(self.A == 0))  # where A = 0 the root is the linear one
+
+    def __call__(self, x: float) -> np.ndarray:
+        U = self.u + x * self.a
+        N = self.nu + x * self.na
+        w2 = self.w2
+        B = (U * self.conj_b).real - w2 * (N * self.conj_nb).real
+        D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            if self.root == 2:
+                return -D / (2 * B)
+            disc = B * B - self.A * D
+            sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+            q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
+            r = (np.fmin if self.root == 0 else np.fmax)(D / q, q / self.A)
+            return np.where(self.A == 0, -D / (2 * B), r) if self.degenerate else r
 
 
 def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
@@ -141,7 +176,12 @@ def exact_ends(cols: Columns, x: float, ends: Sequence[Branch], upper: bool,
     sign = 1.0 if upper else -1.0
     out: list[tuple[float, float]] = [(math.nan, math.nan)] * len(ends)
     live: list[_Zoom] = []
+    memo = cols.cache.setdefault("exact_ends", {})  # the final design's end was found by the search
     for k, (col, ci, root) in enumerate(ends):
+        key = (float(x), col, ci, root, upper, rounds)
+        if key in memo:
+            out[k] = memo[key]
+            continue
         if col >= cols.n_grid:  # a limit column: no frequency to refine
             out[k] = (root_value(cols, x, col, ci, root), math.inf)
             continue
@@ -161,6 +201,9 @@ def exact_ends(cols: Columns, x: float, ends: Sequence[Branch], upper: bool,
             z.step(w, f)
     for z in live:
         out[z.k] = (sign * z.best_v, z.best_w)
+        if len(memo) >= 64:
+            memo.pop(next(iter(memo)))
+        memo[(float(x), *ends[z.k], upper, rounds)] = out[z.k]
     return out
 
 
