@@ -73,3 +73,15 @@ def test_tracker_follows_the_exact_branch(solved):
     t = BranchTracker(cols, br)
     y_exact = branch_value(cols, kx, br)[0]
     assert abs(t(kx) - y_exact) <= 1e-6 * abs(y_exact)
+
+
+def test_polish_first_round_evaluates_each_column_once_with_the_same_numbers(solved):
+    from posicast.tune.refine import _first_round
+
+    cols, kx, ky = solved
+    col = np.array([5, 700, 5, 5, 1200, 700, 3, 1200])
+    lo, hi = cols.omega[col - 1], cols.omega[col + 1]
+    w = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]
+    once, every = _first_round(cols, col, w), cols.data.values(w.ravel())
+    assert once.keys() == every.keys()
+    assert all(np.array_equal(once[k], every[k]) for k in every)

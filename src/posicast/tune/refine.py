@@ -96,7 +96,8 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     call for all ends) and keeps the two intervals around the best point, so the
     bracket shrinks 4x per round; the grid value stands where nothing better is
     found.  (A parabola through three grid points, used before, can overshoot a
-    sharp minimum and make the region smaller than it is.)  With ``where``, also
+    sharp minimum and make the region smaller than it is.)  The first round's points depend on the
+    column alone: each distinct column is evaluated once (:func:`_first_round`).  With ``where``, also
     the frequency of each end's extremum (NaN for the ends not polished).
     """
     idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
@@ -115,9 +116,9 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     best = np.where(np.isfinite(best), best, _INF)
     best_w = cols.omega[col].astype(float)
     t = np.linspace(0.0, 1.0, 9)
-    for _ in range(rounds):
+    for r in range(rounds):
         w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
-        vals = cols.data.values(w.ravel())
+        vals = _first_round(cols, col, w) if r == 0 else cols.data.values(w.ravel())
         f = np.full(w.shape, _INF)
         for c in np.unique(ci):
             sel = np.flatnonzero(ci == c)
@@ -141,6 +142,19 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
         omega[k] = best_w
         return out, omega
     return out
+
+
+def _first_round(cols: Columns, col: np.ndarray, w: np.ndarray) -> dict[str, np.ndarray]:
+    """``cols.data.values(w.ravel())`` for :func:`polish_ends`' first round, whose 9 points per end depend
+    on the end's column alone: each distinct column is evaluated once (issue #15: the ends of a block of
+    neighbouring lines share a few columns, ~4 ends a column on the demo's designs).  The response is
+    evaluated point by point, so the numbers are the same."""
+    _, first, inv = np.unique(col, return_index=True, return_inverse=True)
+    if first.size == col.size:
+        return cols.data.values(w.ravel())
+    vals = cols.data.values(w[first].ravel())
+    rows = (inv.reshape(-1)[:, None] * w.shape[1] + np.arange(w.shape[1])[None, :]).ravel()
+    return {k: v[rows] for k, v in vals.items()}
 
 
 def parabola_vertex(f0: float, f1: float, f2: float) -> float | None:
