@@ -17,9 +17,10 @@ import numpy as np
 
 from .frequency import Columns
 from .hinf import Branch, IntervalEnd, line_forbidden
-from .refine import exact_end, parabola_vertex, root_values, roots_at
+from .refine import RootsOver, exact_end, exact_ends, parabola_vertex, root_values
 
-__all__ = ["active_branches", "branch_value", "BranchTracker", "is_tracked", "exact_top", "exact_bottom"]
+__all__ = ["active_branches", "branch_value", "branch_values", "BranchTracker", "is_tracked", "exact_top",
+           "exact_bottom"]
 
 _INF = math.inf
 
@@ -67,15 +68,28 @@ def branch_value(cols: Columns, x: float, branch: Branch, reach: int = 6,
 
     The grid minimum is searched within ``reach`` columns (the branch drifts
     as ``x`` moves), then refined by a 1-D search.  Returns ``(ky, omega, column)``.
+    (:func:`branch_values` for several branches on one line.)
     """
-    col, ci, root = branch
-    lo_c, hi_c = max(col - reach, 1), min(col + reach, cols.n_grid - 2)
-    cc = np.arange(lo_c, hi_c + 1)
-    vals = root_values(cols, np.full(cc.size, x), cc, np.full(cc.size, ci), np.full(cc.size, root))
+    return branch_values(cols, x, [branch], reach, rounds)[0]
+
+
+def branch_values(cols: Columns, x: float, branches: Sequence[Branch], reach: int = 6,
+                  rounds: int = 7) -> list[tuple[float, float, int]]:
+    """:func:`branch_value` of each branch on line ``x``: the grid columns of all in one evaluation and
+    the exact minima zoomed in together (:func:`~posicast.tune.refine.exact_ends`; issue #15)."""
+    if not branches:
+        return []
+    spans = [np.arange(max(col - reach, 1), min(col + reach, cols.n_grid - 2) + 1) for col, _, _ in branches]
+    cc = np.concatenate(spans)
+    ci = np.concatenate([np.full(sp.size, br[1]) for sp, br in zip(spans, branches)])
+    rt = np.concatenate([np.full(sp.size, br[2]) for sp, br in zip(spans, branches)])
+    vals = root_values(cols, np.full(cc.size, x), cc, ci, rt)  # elementwise: the numbers of each branch alone
     vals = np.where(np.isfinite(vals), vals, _INF)
-    j = int(cc[int(np.argmin(vals))])
-    y, w = exact_end(cols, x, Branch(j, ci, root), upper=True, rounds=rounds)
-    return y, w, j
+    starts = np.cumsum([0] + [sp.size for sp in spans])
+    cols_at = [int(sp[int(np.argmin(vals[a:b]))]) for sp, a, b in zip(spans, starts[:-1], starts[1:])]
+    ends = exact_ends(cols, x, [Branch(j, br[1], br[2]) for j, br in zip(cols_at, branches)], upper=True,
+                      rounds=rounds)
+    return [(y, w, j) for (y, w), j in zip(ends, cols_at)]
 
 
 class BranchTracker:
@@ -97,26 +111,27 @@ class BranchTracker:
         self.reach = reach
         self.n = n
         self.sign = 1.0 if upper else -1.0
-        self._cache: dict[int, tuple[int, int, dict[str, np.ndarray]]] = {}
+        self._cache: dict[int, tuple[int, int, dict[str, np.ndarray], RootsOver]] = {}
         self._load(self.origin)
 
     def _load(self, col: int) -> None:
-        """Centre the window on grid column ``col`` (its values evaluated once per column)."""
+        """Centre the window on grid column ``col`` (its values evaluated once per column, and what of
+        the branch's root does not depend on ``x``)."""
         if col not in self._cache:
             lo_c, hi_c = max(col - self.reach, 0), min(col + self.reach, self.cols.n_grid - 1)
             w = np.linspace(float(self.cols.omega[lo_c]), float(self.cols.omega[hi_c]), self.n)
-            self._cache[col] = (lo_c, hi_c, self.cols.data.values(w))
+            vals = self.cols.data.values(w)
+            self._cache[col] = (lo_c, hi_c, vals, RootsOver(self.cols, vals, *self.key))
         self.col = col
-        self.lo, self.hi, self.vals = self._cache[col]
+        self.lo, self.hi, self.vals, self.roots = self._cache[col]
 
     def __call__(self, x: float) -> float:
         # every call starts at the branch's own window, and follows a drifting extremum at
         # most two windows away (a slope toward another branch is not followed for good)
-        ci, root = self.key
         n, reach, ng = self.n, self.reach, self.cols.n_grid
         self._load(self.origin)
         for _ in range(3):
-            f = self.sign * roots_at(self.cols, x, self.vals, ci, root)
+            f = self.sign * self.roots(x)  # = roots_at(self.cols, x, self.vals, *self.key)
             f = np.where(np.isfinite(f), f, _INF)
             k = int(np.argmin(f))
             if not np.isfinite(f[k]):
@@ -171,8 +186,8 @@ def exact_top(cols: Columns, x: float, top: float, bottom: float) -> tuple[float
     # the exact top is the least exact branch minimum (it may lie a little above the polished grid
     # value as well as below it); the grid value stands only when no branch is found
     best, best_w, best_end = _INF, math.nan, None
-    for br in active_branches(cols, x, top, bottom):
-        yv, wv, j = branch_value(cols, x, br, reach=1)
+    branches = active_branches(cols, x, top, bottom)
+    for br, (yv, wv, j) in zip(branches, branch_values(cols, x, branches, reach=1)):
         if math.isfinite(yv) and yv < best:
             # below ``bottom``: this forbidden interval swallows the whole admissible interval
             best, best_w, best_end = yv, wv, Branch(j, br[1], br[2])

@@ -177,7 +177,8 @@ def _candidates(problem: Problem, region: Region, i: int) -> Iterator[tuple[floa
     x_best = float(region.x[i])
     y_best, end, bottom = _probe_top(problem, region, i, x_best)
     if end is not None and not isinstance(end, Cut):
-        x_best, y_best, end = exact_optimum(problem, region, i, x_best, y_best, bottom, end)
+        x_best, y_best, end = exact_optimum(problem, region, i, x_best, y_best, bottom, end,
+                                            probe=Probe(y_best, end, bottom))
     later = f"; the best line (at {region.x[i]:.4g}) did not verify: this is the best of the next lines' tops"
     if math.isfinite(y_best):  # -inf: the fresh line found no stable admissible piece there
         yield x_best, y_best, end, bottom, ""
@@ -264,13 +265,15 @@ def _probe_line(problem: Problem, region: Region, i: int, ln: LineData) -> Probe
     return Probe(-math.inf, None, -math.inf)
 
 
-def _exact_interval(problem: Problem, region: Region, i: int, x: float) -> tuple[float, float, float, IntervalEnd]:
+def _exact_interval(problem: Problem, region: Region, i: int, x: float,
+                    probe: Probe | None = None) -> tuple[float, float, float, IntervalEnd]:
     """The best admissible interval on a fresh line at ``x``, both ends refined exactly.
 
-    Returns ``(top, bottom, omega, end)``; ``top <= bottom`` when the interval
-    is empty exactly (a sliver the grid resolved as open).
+    ``probe``: :func:`_probe_top` of that line when the caller has it already (issue #15: the best
+    line's fresh scan is not repeated).  Returns ``(top, bottom, omega, end)``; ``top <= bottom``
+    when the interval is empty exactly (a sliver the grid resolved as open).
     """
-    y_probe, end, bot = _probe_top(problem, region, i, x)
+    y_probe, end, bot = _probe_top(problem, region, i, x) if probe is None else probe
     if not math.isfinite(y_probe):
         return -math.inf, math.inf, math.nan, None
     if end is None or isinstance(end, Cut):  # a stability break, the range, or an exact cut: exact already
@@ -282,16 +285,18 @@ def _exact_interval(problem: Problem, region: Region, i: int, x: float) -> tuple
     return y, b, w, end_exact if end_exact is not None else end
 
 
-def _open_at(problem: Problem, region: Region, x: float, line: int) -> tuple[float, float, IntervalEnd] | None:
+def _open_at(problem: Problem, region: Region, x: float, line: int,
+             probe: Probe | None = None) -> tuple[float, float, IntervalEnd] | None:
     """``(top, bottom, end)`` of the exact interval at ``x`` if it is open, else None."""
-    y, b_, _, e = _exact_interval(problem, region, line, x)
+    y, b_, _, e = _exact_interval(problem, region, line, x, probe)
     return (y, b_, e) if math.isfinite(y) and y > b_ else None
 
 
 # ---------------------------------------------------------------------- the exact optimum
-def _anchor(problem: Problem, region: Region, i: int, x0: float) -> Anchor | None:
-    """An exactly open interval at ``x0`` on line ``i``, or else on the best scan lines (None: none)."""
-    got = _open_at(problem, region, x0, i)
+def _anchor(problem: Problem, region: Region, i: int, x0: float, probe: Probe | None = None) -> Anchor | None:
+    """An exactly open interval at ``x0`` on line ``i``, or else on the best scan lines (None: none).
+    ``probe``: the fresh line's :func:`_probe_top` at ``x0``, if known."""
+    got = _open_at(problem, region, x0, i, probe)
     if got is not None:
         return Anchor(i, x0, *got)
     tops = np.array([region.top(k) for k in range(region.x.size)])
@@ -370,9 +375,14 @@ class _Search:
     up_t: list[BranchTracker]
     lo_t: list[BranchTracker]
 
+    def state(self) -> tuple[float, float, tuple[float, float, IntervalEnd], int, int]:
+        """What the next step depends on: the bracket, the best point and the trackers (which only
+        grow; each tracker's value depends on ``x`` alone)."""
+        return self.lo_x, self.hi_x, self.best, len(self.up_t), len(self.lo_t)
+
 
 def exact_optimum(problem: Problem, region: Region, i: int, x0: float, y0: float, bottom: float,
-                  end: IntervalEnd) -> tuple[float, float, IntervalEnd]:
+                  end: IntervalEnd, probe: Probe | None = None) -> tuple[float, float, IntervalEnd]:
     """Refine the best line's top ``(x0, y0)`` to the exact optimum between the neighbouring lines.
 
     The optimum usually sits where two frequency branches of the boundary cross
@@ -385,9 +395,10 @@ def exact_optimum(problem: Problem, region: Region, i: int, x0: float, y0: float
     added and the search repeated; where the region turns out closed, the
     bracket is cut back to the open side.  If the interval at ``x0`` is empty
     exactly (a sliver thinner than the grid error), the scan lines are tried
-    best first.
+    best first.  ``probe``: :func:`_probe_top` of the fresh line at ``x0`` when the caller made it
+    (it is not scanned again).
     """
-    anchor = _anchor(problem, region, i, x0)
+    anchor = _anchor(problem, region, i, x0, probe)
     if anchor is None:
         return x0, y0, end
     lo_x = float(region.x[max(anchor.line - 1, 0)])
@@ -399,8 +410,12 @@ def exact_optimum(problem: Problem, region: Region, i: int, x0: float, y0: float
     real_floor = _real_floor(problem, anchor)
     search = _Search(lo_x, hi_x, best, _trackers(problem, uppers, True), _trackers(problem, lowers, False))
     for _ in range(8):
-        if not search.up_t or not search.hi_x > search.lo_x or not _search_step(problem, region, anchor, search,
-                                                                                  real_floor):
+        if not search.up_t or not search.hi_x > search.lo_x:
+            break
+        before = search.state()
+        if not _search_step(problem, region, anchor, search, real_floor) or search.state() == before:
+            # a step that changed nothing would be repeated exactly (the same trackers' optimum, the same
+            # exact line) up to the step limit: stop there, with the same answer (issue #15)
             break
     return search.best
 
@@ -441,9 +456,21 @@ def _search_step(problem: Problem, region: Region, anchor: Anchor, s: _Search, r
 
 
 # ---------------------------------------------------------------------- independent verification
-def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> tuple[float, float]:
-    """``max |tf(j omega)|``: every grid local maximum within 2 % of the top is refined between its
-    neighbours (an optimal design often has two equal peaks); limit values count as omega = inf."""
+def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None,
+          grid_peak: tuple[float, float] | None = None) -> tuple[float, float]:
+    """``max |tf(j omega)|``: :func:`_grid_peak` (or ``grid_peak``, when the caller has it for the same
+    transfer function and grid), then the limit values, which count as omega = inf."""
+    best, where = _grid_peak(tf, omega) if grid_peak is None else grid_peak
+    if limit is not None and limit.size:
+        lm = float(np.max(np.abs(limit)))
+        if lm > best * (1 + 1e-9):
+            best, where = lm, math.inf
+    return best, where
+
+
+def _grid_peak(tf: TransferFunction, omega: np.ndarray) -> tuple[float, float]:
+    """``max |tf(j omega)|`` over the finite frequencies ``omega``: every grid local maximum within 2 % of
+    the top is refined between its neighbours (an optimal design often has two equal peaks)."""
     H = OnAxis(tf)  # the numbers tf.freqresp gives, without its per-call checks
     mag = np.abs(H(np.asarray(omega, dtype=float)))
     mag = np.where(np.isfinite(mag), mag, 0.0)
@@ -459,11 +486,14 @@ def _peak(tf: TransferFunction, omega: np.ndarray, limit: np.ndarray | None) -> 
                               options={"xatol": 1e-12 * max(hi, 1.0)})
         if -res.fun > best:
             best, where = float(-res.fun), float(res.x)
-    if limit is not None and limit.size:
-        lm = float(np.max(np.abs(limit)))
-        if lm > best * (1 + 1e-9):
-            best, where = lm, math.inf
     return best, where
+
+
+def _same_response(a: TransferFunction, b: TransferFunction) -> bool:
+    """Are ``a`` and ``b`` the same numerator and denominator (so the same numbers at every frequency)?
+    An ``||S||inf`` constraint's channel is the loop's sensitivity itself."""
+    return all(np.array_equal(getattr(p, k), getattr(q, k))
+               for p, q in ((a.num, b.num), (a.den, b.den)) for k in ("coeffs", "delays"))
 
 
 def _active_frequency(problem: Problem, kx: float, end: IntervalEnd) -> float:
@@ -494,8 +524,10 @@ def finish(tuner: _Tuner, problem: Problem, region: Region, kx: float, ky: float
         w = np.unique(np.concatenate([w, w_act * (1.0 + np.linspace(-1e-3, 1e-3, 21))]))
     lim = fd.n_grid
     Ulim = cols.u[lim:] + kx * cols.a[lim:] + ky * cols.b[lim:]
+    sens = loop.sensitivity
     with np.errstate(divide="ignore"):
-        ms, w_ms = _peak(loop.sensitivity, w, 1.0 / Ulim)
+        s_peak = _grid_peak(sens, w)
+        ms, w_ms = _peak(sens, w, 1.0 / Ulim, s_peak)
     norms, active = [], []
     for ci, c in enumerate(tuner.constraints):
         src, dst = c.channel
@@ -504,7 +536,8 @@ def finish(tuner: _Tuner, problem: Problem, region: Region, kx: float, ky: float
         Nlim = nu[lim:] + kx * na[lim:] + ky * nb[lim:]
         with np.errstate(divide="ignore", invalid="ignore"):
             Xlim = np.sqrt(w2[lim:]) * c.gamma * np.abs(Nlim) / np.abs(Ulim)
-        n, _ = _peak(X, w, Xlim)
+        # issue #15: an ||S||inf constraint's channel is the sensitivity, whose grid peak is known
+        n, _ = _peak(X, w, Xlim, s_peak if _same_response(X, sens) else None)
         norms.append(n)
         active.append(abs(n - c.gamma) <= 1e-6 * c.gamma)
     try:

@@ -20,7 +20,8 @@ import numpy as np
 from .frequency import Columns
 from .hinf import Branch, IntervalEnd, quadratic_root
 
-__all__ = ["root_value", "root_values", "roots_at", "polish_ends", "parabola_vertex", "exact_end", "forbidden_window"]
+__all__ = ["root_value", "root_values", "roots_at", "RootsOver", "polish_ends", "parabola_vertex", "exact_end", "exact_ends",
+           "forbidden_window"]
 
 _INF = math.inf
 
@@ -49,6 +50,41 @@ def roots_at(cols: Columns, x: float, vals: dict[str, np.ndarray], ci: int, root
                           vals[f"nb{ci}"], w2, root)
 
 
+class RootsOver:
+    """``x -> roots_at(cols, x, vals, ci, root)`` on fixed frequencies ``vals``: what does not depend on
+    ``x`` (the weight, the quadratic's leading coefficient, the conjugates) is computed once.
+
+    Issue #15: a :class:`~posicast.tune.branches.BranchTracker` asks for hundreds of ``x`` on the same
+    window.  The operations that remain are :func:`~posicast.tune.hinf.quadratic_root`'s, in its order,
+    so the numbers are the same (the root not asked for is not computed).
+    """
+
+    def __init__(self, cols: Columns, vals: dict[str, np.ndarray], ci: int, root: int) -> None:
+        self.u, self.a = vals["u"], vals["a"]
+        self.nu, self.na = vals[f"nu{ci}"], vals[f"na{ci}"]
+        b, nb = vals["b"], vals[f"nb{ci}"]
+        self.w2 = np.abs(vals[f"W{ci}"]) ** 2 / cols.data.constraints[ci].gamma ** 2
+        self.A = np.abs(b) ** 2 - self.w2 * np.abs(nb) ** 2
+        self.conj_b, self.conj_nb = np.conj(b), np.conj(nb)
+        self.root = int(root)
+        self.degenerate = bool(np.any(self.A == 0))  # where A = 0 the root is the linear one
+
+    def __call__(self, x: float) -> np.ndarray:
+        U = self.u + x * self.a
+        N = self.nu + x * self.na
+        w2 = self.w2
+        B = (U * self.conj_b).real - w2 * (N * self.conj_nb).real
+        D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            if self.root == 2:
+                return -D / (2 * B)
+            disc = B * B - self.A * D
+            sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+            q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
+            r = (np.fmin if self.root == 0 else np.fmax)(D / q, q / self.A)
+            return np.where(self.A == 0, -D / (2 * B), r) if self.degenerate else r
+
+
 def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
                 upper: np.ndarray, rounds: int = 4, where: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Exact interval ends: the extremum over frequency of each end's root, refined between its
@@ -60,7 +96,8 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     call for all ends) and keeps the two intervals around the best point, so the
     bracket shrinks 4x per round; the grid value stands where nothing better is
     found.  (A parabola through three grid points, used before, can overshoot a
-    sharp minimum and make the region smaller than it is.)  With ``where``, also
+    sharp minimum and make the region smaller than it is.)  The first round's points depend on the
+    column alone: each distinct column is evaluated once (:func:`_first_round`).  With ``where``, also
     the frequency of each end's extremum (NaN for the ends not polished).
     """
     idx = [k for k, e in enumerate(ends) if e is not None and 0 < e[0] < cols.n_grid - 1]
@@ -79,9 +116,9 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     best = np.where(np.isfinite(best), best, _INF)
     best_w = cols.omega[col].astype(float)
     t = np.linspace(0.0, 1.0, 9)
-    for _ in range(rounds):
+    for r in range(rounds):
         w = lo[:, None] + (hi - lo)[:, None] * t[None, :]
-        vals = cols.data.values(w.ravel())
+        vals = _first_round(cols, col, w) if r == 0 else cols.data.values(w.ravel())
         f = np.full(w.shape, _INF)
         for c in np.unique(ci):
             sel = np.flatnonzero(ci == c)
@@ -107,6 +144,19 @@ def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], value
     return out
 
 
+def _first_round(cols: Columns, col: np.ndarray, w: np.ndarray) -> dict[str, np.ndarray]:
+    """``cols.data.values(w.ravel())`` for :func:`polish_ends`' first round, whose 9 points per end depend
+    on the end's column alone: each distinct column is evaluated once (issue #15: the ends of a block of
+    neighbouring lines share a few columns, ~4 ends a column on the demo's designs).  The response is
+    evaluated point by point, so the numbers are the same."""
+    _, first, inv = np.unique(col, return_index=True, return_inverse=True)
+    if first.size == col.size:
+        return cols.data.values(w.ravel())
+    vals = cols.data.values(w[first].ravel())
+    rows = (inv.reshape(-1)[:, None] * w.shape[1] + np.arange(w.shape[1])[None, :]).ravel()
+    return {k: v[rows] for k, v in vals.items()}
+
+
 def parabola_vertex(f0: float, f1: float, f2: float) -> float | None:
     """The correction ``f1 - vertex`` of the parabola through three equally spaced samples around a
     minimum ``f1``, or None where the curvature is rounding noise.
@@ -126,35 +176,81 @@ def exact_end(cols: Columns, x: float, end: Branch, upper: bool, rounds: int = 7
     Zooms in on the extremum between the column's neighbours: each round
     evaluates the exact frequency response at 9 points and keeps the two
     intervals around the best (the bracket shrinks 4x per round), then a
-    parabola through the last three points.
+    parabola through the last three points.  (:func:`exact_ends` for several.)
     """
-    col, ci, root = end
-    if col >= cols.n_grid:  # a limit column: no frequency to refine
-        return root_value(cols, x, col, ci, root), math.inf
-    lo = float(cols.omega[max(col - 1, 0)])
-    hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
+    return exact_ends(cols, x, [end], upper, rounds)[0]
+
+
+def exact_ends(cols: Columns, x: float, ends: Sequence[Branch], upper: bool,
+               rounds: int = 7) -> list[tuple[float, float]]:
+    """:func:`exact_end` of several ends on one line ``x``, in lockstep: each round evaluates the exact
+    frequency response once for every end's 9 points (issue #15: the response's per-call cost dominated
+    when each branch zoomed in alone).  Each end's numbers are those :func:`exact_end` gives it alone
+    (the response is evaluated point by point)."""
     sign = 1.0 if upper else -1.0
-    base = root_value(cols, x, col, ci, root)
-    best_v, best_w = (sign * base if math.isfinite(base) else math.inf), float(cols.omega[col])
-    if not hi > lo:
-        return base, best_w
-    for _ in range(rounds):
-        w = np.linspace(lo, hi, 9)
-        f = sign * roots_at(cols, x, cols.data.values(w), ci, root)
+    out: list[tuple[float, float]] = [(math.nan, math.nan)] * len(ends)
+    live: list[_Zoom] = []
+    memo = cols.cache.setdefault("exact_ends", {})  # the final design's end was found by the search
+    for k, (col, ci, root) in enumerate(ends):
+        key = (float(x), col, ci, root, upper, rounds)
+        if key in memo:
+            out[k] = memo[key]
+            continue
+        if col >= cols.n_grid:  # a limit column: no frequency to refine
+            out[k] = (root_value(cols, x, col, ci, root), math.inf)
+            continue
+        lo = float(cols.omega[max(col - 1, 0)])
+        hi = float(cols.omega[min(col + 1, cols.n_grid - 1)])
+        base = root_value(cols, x, col, ci, root)
+        best_w = float(cols.omega[col])
+        if not hi > lo:
+            out[k] = (base, best_w)
+            continue
+        live.append(_Zoom(k, ci, root, lo, hi, sign * base if math.isfinite(base) else math.inf, best_w))
+    for _ in range(rounds if live else 0):
+        ws = [np.linspace(z.lo, z.hi, 9) for z in live]
+        vals = cols.data.values(np.concatenate(ws))
+        for r, (z, w) in enumerate(zip(live, ws)):
+            f = sign * roots_at(cols, x, _rows(vals, z.ci, slice(9 * r, 9 * r + 9)), z.ci, z.root)
+            z.step(w, f)
+    for z in live:
+        out[z.k] = (sign * z.best_v, z.best_w)
+        if len(memo) >= 64:
+            memo.pop(next(iter(memo)))
+        memo[(float(x), *ends[z.k], upper, rounds)] = out[z.k]
+    return out
+
+
+def _rows(vals: dict[str, np.ndarray], ci: int, rows: slice) -> dict[str, np.ndarray]:
+    """The arrays :func:`roots_at` reads for constraint ``ci``, at ``rows``."""
+    keys = ("u", "a", "b", f"W{ci}", f"nu{ci}", f"na{ci}", f"nb{ci}")
+    return {k: vals[k][rows] for k in keys}
+
+
+class _Zoom:
+    """One end's bracket ``[lo, hi]`` and best value so far in :func:`exact_ends`."""
+
+    def __init__(self, k: int, ci: int, root: int, lo: float, hi: float, best_v: float, best_w: float) -> None:
+        self.k, self.ci, self.root = k, ci, root
+        self.lo, self.hi = lo, hi
+        self.best_v, self.best_w = best_v, best_w
+
+    def step(self, w: np.ndarray, f: np.ndarray) -> None:
+        """One round: ``f`` (sign-adjusted roots at the 9 points ``w``) narrows the bracket."""
         f = np.where(np.isfinite(f), f, math.inf)
         k = int(np.argmin(f))
-        if f[k] < best_v:
-            best_v, best_w = float(f[k]), float(w[k])
-        lo, hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
+        if f[k] < self.best_v:
+            self.best_v, self.best_w = float(f[k]), float(w[k])
+        self.lo, self.hi = float(w[max(k - 1, 0)]), float(w[min(k + 1, 8)])
         if 0 < k < 8 and np.all(np.isfinite(f[k - 1 : k + 2])):
             f0, f1, f2 = f[k - 1 : k + 2]
             corr = parabola_vertex(f0, f1, f2)
             if corr is not None:
                 vertex = f1 - corr
-                if vertex < best_v:
+                if vertex < self.best_v:
                     h = w[1] - w[0]
-                    best_v, best_w = float(vertex), float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
-    return sign * best_v, best_w
+                    self.best_v = float(vertex)
+                    self.best_w = float(w[k] + h * (f0 - f2) / (2 * (f0 - 2 * f1 + f2)))
 
 
 # ---------------------------------------------------------------------- a window narrower than the grid
