@@ -379,7 +379,7 @@ class FrequencyData:
             self._append(w0 * np.geomspace(1e-1, 1.0, 101)[:-1], at=1 if self._has_zero else 0)
 
     def _insert_points(self, X: float, Y: float) -> None:
-        """Insert midpoints wherever the exact derivative says the grid is too coarse (:meth:`_violations`).
+        """Insert midpoints wherever the exact derivative says the grid is too coarse (:meth:`_bad_intervals`).
 
         Each round bisects every interval that fails the test; only the two halves of a bisected
         interval are tested again (the test of an interval uses its two ends alone), and the new
@@ -432,8 +432,10 @@ class FrequencyData:
 
     def _interval_ends(self, v: dict[str, np.ndarray], X: float, Y: float) -> tuple[list[tuple[np.ndarray, np.ndarray]],
                                                                                  np.ndarray]:
-        """Per point, what the spacing test of :meth:`_violations` reads at an interval's end: for ``1 + L``
-        and for each constraint, the derivative bound and the size; and whether ``|1 + L|`` is finite."""
+        """Per point, what the spacing test (:meth:`_bad_intervals`) reads at an interval's end: for ``1 + L``
+        and for each constraint, the bound of the derivative (``|du| + X |da| + Y |db|``, and
+        ``|W'| |N| + |W| |N'|`` with ``|N| = |nu| + X |na| + Y |nb|``) and the size (``max(|u| + X |a| + Y |b|, r)``,
+        and ``max(|W| |N|, that, r)``); and whether ``|1 + L|`` is finite there."""
         mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
         der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
         out = [(der, np.maximum(mag, self.r_min))]
@@ -448,7 +450,9 @@ class FrequencyData:
 
     def _bad_intervals(self, wl: np.ndarray, wr: np.ndarray, el: list[tuple[np.ndarray, np.ndarray]],
                        er: list[tuple[np.ndarray, np.ndarray]], fl: np.ndarray, fr: np.ndarray) -> np.ndarray:
-        """The spacing test of :meth:`_violations` on intervals given by their ends (:meth:`_interval_ends`)."""
+        """The grid's spacing test on intervals given by their ends (:meth:`_interval_ends`): too coarse where, for
+        ``1 + L`` or a constraint, the larger derivative bound at the two ends times the spacing exceeds ``delta``
+        times the smaller size (and both ends are finite, and the interval is not at rounding level)."""
         h = wr - wl
         bad = np.zeros(h.shape, dtype=bool)
         for (dl, zl), (dr, zr) in zip(el, er):
@@ -472,27 +476,6 @@ class FrequencyData:
             return False
         return bool(abs(here[0] - lower[0]) > 1e-3 * X or abs(here[1] - lower[1]) > 1e-3 * Y)
 
-    def _violations(self, X: float, Y: float) -> np.ndarray:
-        v = self._vals
-        h = np.diff(self.omega)
-        mag = np.abs(v["u"]) + X * np.abs(v["a"]) + Y * np.abs(v["b"])
-        der = np.abs(v["du"]) + X * np.abs(v["da"]) + Y * np.abs(v["db"])
-        size = np.maximum(mag, self.r_min)
-        err = np.maximum(der[:-1], der[1:]) * h / np.minimum(size[:-1], size[1:])
-        bad = err > self.delta
-        for i, c in enumerate(self.constraints):
-            W = np.abs(v[f"W{i}"]) / c.gamma
-            dW = np.abs(v[f"dW{i}"]) / c.gamma
-            nmag = np.abs(v[f"nu{i}"]) + X * np.abs(v[f"na{i}"]) + Y * np.abs(v[f"nb{i}"])
-            nder = np.abs(v[f"dnu{i}"]) + X * np.abs(v[f"dna{i}"]) + Y * np.abs(v[f"dnb{i}"])
-            wn = W * nmag
-            wder = dW * nmag + W * nder
-            sz = np.maximum(np.maximum(wn, mag), self.r_min)
-            e2 = np.maximum(wder[:-1], wder[1:]) * h / np.minimum(sz[:-1], sz[1:])
-            bad |= e2 > self.delta
-        finite = np.isfinite(mag[:-1]) & np.isfinite(mag[1:])
-        return bad & finite & (h > 1e-12 * self.omega[1:])
-
     def _magnitudes(self) -> dict[str, np.ndarray]:
         """``|v|`` of every value and derivative on the current grid (made once per grid)."""
         cached = getattr(self, "_mag_cache", None)
@@ -504,7 +487,7 @@ class FrequencyData:
     def allowed_spacing(self, X: float, Y: float) -> np.ndarray:
         """Per grid column, the spacing :meth:`refine` accepts there for gains up to ``X, Y``:
         ``delta`` times the size of ``1 + L`` (and of each constraint's terms) over their exact
-        derivative, as in :meth:`_violations` (``inf`` where nothing changes)."""
+        derivative, as in :meth:`_bad_intervals` (``inf`` where nothing changes)."""
         v = self._magnitudes()
         mag = v["u"] + X * v["a"] + Y * v["b"]
         der = v["du"] + X * v["da"] + Y * v["db"]
