@@ -20,9 +20,25 @@ try:  # the gufuncs np.linalg.solve / lstsq call (numpy >= 2.0)
 except (ImportError, AttributeError):  # pragma: no cover - another numpy
     _SOLVE1 = _LSTSQ = _EIGVALS = None
 
+
+def _same_as_numpy() -> bool:
+    """Do the private gufuncs, called as below, still give np.linalg's results (a private API can change its
+    signature in any numpy release: then np.linalg is used)?"""
+    a, b = np.array([[2.0, 1.0, 0.5], [1.0, 3.0, 0.0], [0.5, 0.0, 4.0]]), np.array([1.0, 2.0, -1.0])
+    try:
+        with np.errstate(all="ignore"):
+            return bool(np.array_equal(_SOLVE1(a, b, signature="dd->d"), np.linalg.solve(a, b))
+                        and np.array_equal(_LSTSQ(a[:, :2], b[:, None], _EPS * 3, signature="ddd->ddid")[0][:, 0],
+                                           np.linalg.lstsq(a[:, :2], b, rcond=None)[0])
+                        and np.array_equal(_EIGVALS(a, signature="d->D"), np.linalg.eigvals(a).astype(complex)))
+    except Exception:  # noqa: BLE001 - any failure means: use np.linalg  # pragma: no cover
+        return False
+
 __all__ = ["solve", "lstsq", "eigvals"]
 
 _EPS = float(np.finfo(float).eps)
+if _SOLVE1 is not None and not _same_as_numpy():  # pragma: no cover - a numpy whose private API moved
+    _SOLVE1 = _LSTSQ = _EIGVALS = None
 
 
 def _singular(err: object, flag: object) -> None:
