@@ -145,8 +145,10 @@ def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[
         if lo < hi and ma[ja] and mb[jb]:
             # the overlap's ends are breaks known to within their uncertainty: join only through
             # its certain part (a skipped join costs one more spectrum check, never a wrong label)
-            e_lo = max(A.error_at(lo), B.error_at(lo))
-            e_hi = max(A.error_at(hi), B.error_at(hi))
+            # a line's uncertainty at an end that is not one of its own breaks is 0: an end strictly inside a
+            # segment is none of the (sorted) breaks, so only the line whose break it is gets looked up
+            e_lo = max(A.error_at(lo) if not lo > alo else 0.0, B.error_at(lo) if not lo > blo else 0.0)
+            e_hi = max(A.error_at(hi) if not hi < ahi else 0.0, B.error_at(hi) if not hi < bhi else 0.0)
             if lo + e_lo < hi - e_hi:
                 out.append((ja, jb, interval_point(lo + e_lo, hi - e_hi)))
         if ahi <= bhi:
