@@ -159,3 +159,19 @@ def test_vibration_grid_sums_in_the_documented_order(layout):
         np.testing.assert_allclose(np.hypot(*got), np.hypot(*ref), rtol=0, atol=2e-6, err_msg=f"{layout} {n}")
         assert np.array_equal(base._vibration_grid(A, T, bins, zetas).reshape(rows, -1),
                               np.hypot(*got).astype(float)), (layout, n)
+
+
+def test_excited_end_ignores_a_nan_bin():
+    """The excited band's end is the first largest drop, from 60 Hz on, between the medians of the 6-bin
+    windows before and from a bin: a PSD of 1 below 120 Hz and 1e-3 from it falls 1000x, first at 118 Hz
+    (the window 118-123 Hz is already mostly low), so the band ends 2 bins earlier, at 116 Hz.  One NaN bin
+    elsewhere (its windows' drops are NaN) does not hide that (the vectorised scan of wave 6 took argmax
+    over NaN)."""
+    from posicast.identification.resonance import _excited_end
+
+    f = np.arange(0.0, 200.0, 1.0)
+    P = np.where(f < 120.0, 1.0, 1e-3)
+    P[70] = np.nan
+    end, why = _excited_end(f, P)
+    assert end == pytest.approx(118.0 - 2.0, abs=1e-12)
+    assert "1000x" in why and "118 Hz" in why

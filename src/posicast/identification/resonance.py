@@ -94,7 +94,8 @@ def _excited_end(f: np.ndarray, P: np.ndarray) -> tuple[float, str]:
     if f.size > 2 * w:
         med = np.median(np.lib.stride_tricks.sliding_window_view(logp, w), axis=1)
         i = np.arange(w, f.size - w)
-        drop = np.where(f[i] >= 60.0, med[i - w] - med[i], -np.inf)
+        drop = med[i - w] - med[i]
+        drop = np.where((f[i] >= 60.0) & ~np.isnan(drop), drop, -np.inf)  # a NaN drop never wins, as in a loop
         k = int(np.argmax(drop))
         if drop[k] > best:
             best, where = float(drop[k]), float(f[i[k]])
