@@ -21,7 +21,7 @@ import numpy as np
 from .frequency import Columns
 
 __all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
-           "quadratic_root", "forbidden", "complement", "line_forbidden"]
+           "quadratic_root", "quadratic_root_of", "forbidden", "complement", "line_forbidden"]
 
 _INF = math.inf
 
@@ -180,6 +180,12 @@ def quadratic_root(U: np.ndarray, N: np.ndarray, b: np.ndarray, nb: np.ndarray, 
     A = np.abs(b) ** 2 - w2 * np.abs(nb) ** 2
     B = (U * np.conj(b)).real - w2 * (N * np.conj(nb)).real
     D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
+    return quadratic_root_of(A, B, D, root)
+
+
+def quadratic_root_of(A: np.ndarray, B: np.ndarray, D: np.ndarray, root: np.ndarray | int) -> np.ndarray:
+    """:func:`quadratic_root` from the coefficients of ``A ky^2 + 2 B ky + D`` (for callers that keep the
+    parts of ``A`` and ``B`` that do not change, e.g. :class:`~posicast.tune.refine.RootsOver`)."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         disc = B * B - A * D
         sq = np.sqrt(np.where(disc >= 0, disc, np.nan))

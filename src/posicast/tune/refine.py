@@ -18,7 +18,7 @@ from typing import Sequence
 import numpy as np
 
 from .frequency import Columns
-from .hinf import Branch, IntervalEnd, quadratic_root
+from .hinf import Branch, IntervalEnd, quadratic_root, quadratic_root_of
 
 __all__ = ["root_value", "root_values", "roots_at", "RootsOver", "polish_ends", "parabola_vertex", "exact_end", "exact_ends",
            "forbidden_window"]
@@ -55,8 +55,8 @@ class RootsOver:
     ``x`` (the weight, the quadratic's leading coefficient, the conjugates) is computed once.
 
     Issue #15: a :class:`~posicast.tune.branches.BranchTracker` asks for hundreds of ``x`` on the same
-    window.  The operations that remain are :func:`~posicast.tune.hinf.quadratic_root`'s, in its order,
-    so the numbers are the same (the root not asked for is not computed).
+    window.  ``B`` and ``D`` are formed as :func:`~posicast.tune.hinf.quadratic_root` forms them and the
+    root comes from the same :func:`~posicast.tune.hinf.quadratic_root_of`, so the numbers are the same.
     """
 
     def __init__(self, cols: Columns, vals: dict[str, np.ndarray], ci: int, root: int) -> None:
@@ -67,7 +67,6 @@ class RootsOver:
         self.A = np.abs(b) ** 2 - self.w2 * np.abs(nb) ** 2
         self.conj_b, self.conj_nb = np.conj(b), np.conj(nb)
         self.root = int(root)
-        self.degenerate = bool(np.any(self.A == 0))  # where A = 0 the root is the linear one
 
     def __call__(self, x: float) -> np.ndarray:
         U = self.u + x * self.a
@@ -75,14 +74,7 @@ class RootsOver:
         w2 = self.w2
         B = (U * self.conj_b).real - w2 * (N * self.conj_nb).real
         D = np.abs(U) ** 2 - w2 * np.abs(N) ** 2
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            if self.root == 2:
-                return -D / (2 * B)
-            disc = B * B - self.A * D
-            sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
-            q = -(B + np.where(B >= 0, 1.0, -1.0) * sq)
-            r = (np.fmin if self.root == 0 else np.fmax)(D / q, q / self.A)
-            return np.where(self.A == 0, -D / (2 * B), r) if self.degenerate else r
+        return quadratic_root_of(self.A, B, D, self.root)
 
 
 def polish_ends(cols: Columns, x: np.ndarray, ends: Sequence[IntervalEnd], values: np.ndarray,
