@@ -133,3 +133,39 @@ def test_dead_time_with_a_derivative_filter_gives_a_verified_design():
     # the design is close to the one without the filter (kp 5.15, kd 2.88), not a degenerate corner
     free = posicast.tune_pd(G, S, "control_action", ms=2.0, F=F)
     assert 0.8 * free.kp < r.kp <= free.kp * 1.05
+
+
+def test_lines_forbidden_on_the_probe_are_forbidden_on_the_whole_grid(monkeypatch):
+    """The sweep's lines that a probe of ~1000 columns shows forbidden over the whole window (issue #15, wave 7)
+    get the :class:`LineData` the full scan gives them: no admissible interval, the same D-decomposition breaks.
+    Most of a lumped ZVD design's sweep lines at large ``kp`` are such lines."""
+    from posicast.tune import scan
+
+    real_scan, real_probe = scan.scan_lines, scan._forbidden_on_probe
+    blocked_by_probe = []
+    compared = []
+
+    def probe(problem, xs):
+        out = real_probe(problem, xs)
+        blocked_by_probe.append(int(out.sum()))
+        return out
+
+    def both(problem, xs):  # pass 1 (the first scan) with and without the probe, on the grid it was made for
+        with_probe = real_scan(problem, xs)
+        if not compared:
+            monkeypatch.setattr(scan, "_forbidden_on_probe", lambda p, x: np.zeros(x.size, dtype=bool))
+            compared.append((with_probe, real_scan(problem, xs)))
+            monkeypatch.setattr(scan, "_forbidden_on_probe", probe)
+        return with_probe
+
+    monkeypatch.setattr(scan, "_forbidden_on_probe", probe)
+    monkeypatch.setattr(design_module, "scan_lines", both)
+    posicast.tune_pd(CRANE.G, posicast.design("zvd", CRANE.mode), "control_action", ms=1.2, F=CRANE.F)
+    probed, full = compared[0]
+    assert blocked_by_probe[0] >= 4 and sum(1 for ln in probed if not ln.hinf.size) >= 40
+    assert len(probed) == len(full) == 67
+    for a, b in zip(probed, full):
+        assert a.x == b.x and np.array_equal(a.hinf, b.hinf) and len(a.per_constraint) == len(b.per_constraint)
+        assert all(np.array_equal(p, q) for p, q in zip(a.per_constraint, b.per_constraint))
+        assert np.array_equal(a.breaks, b.breaks) and np.array_equal(a.break_kind, b.break_kind)
+        assert np.array_equal(a.break_err, b.break_err) and a.ends == b.ends  # (comp: set later, by the cells)

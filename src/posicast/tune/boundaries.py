@@ -228,8 +228,13 @@ def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True) -
     order = np.argsort(level, kind="stable")
     order = order[~np.isnan(level[order])]
     sl = level[order]
-    start = np.searchsorted(sl, line.lo, side="left")
-    count = np.searchsorted(sl, line.hi, side="right") - start
+    seg_lo, seg_hi = line.lo, line.hi
+    if sl.size:  # only the segments whose span meets the levels' range (issue #15: a lumped shaper's curve
+        # has ~10^5 segments, most of them far out, and the binary searches cost more than this test)
+        near = np.flatnonzero((seg_hi >= sl[0]) & (seg_lo <= sl[-1]))
+        seg, seg_lo, seg_hi = seg[near], seg_lo[near], seg_hi[near]
+    start = np.searchsorted(sl, seg_lo, side="left")
+    count = np.searchsorted(sl, seg_hi, side="right") - start
     count = np.maximum(count, 0)
     cols = np.repeat(seg, count)
     first = np.repeat(np.cumsum(count) - count, count)

@@ -34,7 +34,8 @@ from .axis import OnAxis
 from .constraints import Constraint
 from .family import ControllerFamily
 
-__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "thin_columns", "thinnable"]
+__all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "grid_subset", "thin_columns",
+           "thinnable"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -666,9 +667,14 @@ def _thin(cols: Columns, X: float, Y: float) -> tuple[Columns, np.ndarray | None
     if keep.sum() > 0.7 * n:
         return cols, None
     sel = np.flatnonzero(keep)
-    full = np.concatenate([sel, np.arange(n, cols.u.size)])
+    return grid_subset(cols, sel), sel
+
+
+def grid_subset(cols: Columns, sel: np.ndarray) -> Columns:
+    """The grid columns ``sel`` (increasing indices below ``n_grid``) and every limit column of ``cols``."""
+    full = np.concatenate([sel, np.arange(cols.n_grid, cols.u.size)])
     cons = tuple(ConstraintColumns(c.nu[full], c.na[full], c.nb[full], c.w2[full]) for c in cols.constraints)
-    return Columns(cols.data, cols.omega[sel], sel.size, cols.u[full], cols.a[full], cols.b[full], cons), sel
+    return Columns(cols.data, cols.omega[sel], sel.size, cols.u[full], cols.a[full], cols.b[full], cons)
 
 
 def _refuse_improper_loop(asym: dict[str, Asymptote], family: ControllerFamily, architecture: str) -> None:

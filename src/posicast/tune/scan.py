@@ -32,7 +32,7 @@ from ..loops import Loop
 from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
-from .frequency import Columns, FrequencyData, columns_of, thin_columns, thinnable
+from .frequency import Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable
 from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden
 from .refine import forbidden_window, polish_ends
 
@@ -256,15 +256,61 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
     if not thinnable(cols):  # every line needs every column: one group (the same numbers, fewer calls)
         decade = np.zeros_like(decade)
     crossings = _crossings(problem, xs)
+    blocked = np.zeros(xs.size, dtype=bool)
+    if cols.n_constraints == 1 and thinnable(cols):
+        # from the largest gains down, while the probe still finds forbidden lines (small gains rarely are)
+        for d in np.unique(decade)[::-1]:
+            group = np.flatnonzero(decade == d)
+            blocked[group] = _forbidden_on_probe(problem, xs[group])
+            if not blocked[group].any():
+                break
+    for i in np.flatnonzero(blocked):
+        out[i] = _blocked_line(problem, xs[i], crossings[i])
     for d in np.unique(decade):
-        group = np.flatnonzero(decade == d)
-        sub, sel = thin_columns(cols, float(mag[group].max()), y_top)
+        group = np.flatnonzero((decade == d) & ~blocked)
+        if not group.size:
+            continue
+        # the columns the whole decade needs, blocked lines included (the same thinning with or without them)
+        sub, sel = thin_columns(cols, float(mag[decade == d].max()), y_top)
         block = max(1, int(2_000_000 // max(1, sub.u.size * max(1, sub.n_constraints))))
         for k in range(0, group.size, block):
             idx = group[k : k + block]
             for i, line in zip(idx, _scan_block(problem, sub, sel, xs[idx], [crossings[j] for j in idx])):
                 out[i] = line
     return [ln for ln in out if ln is not None]
+
+
+#: the probe of :func:`_forbidden_on_probe`: about this many evenly spaced grid columns
+_PROBE_COLUMNS = 1024
+
+
+def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
+    """Which lines ``xs`` the (single) H-infinity constraint forbids over the whole verified window, shown on
+    a probe of every k-th grid column and the limit columns.
+
+    Each probe column's forbidden interval is exact and is also forbidden by the whole grid (there it is
+    its own entry or inside a run's hull), so a line the probe's union covers from ``max(-y_valid, y_window[0])``
+    to ``min(y_valid, y_window[1])`` has no admissible interval on the whole grid either (:func:`_blocked_line`
+    gives it the same :class:`LineData`).  Issue #15: with a lumped shaper, most of the sweep's lines at large
+    ``|kx|`` are forbidden throughout, and a probe of ~1000 of the ~85 000 columns shows it for nearly all of them.
+    """
+    cols = problem.columns
+    blocked = np.zeros(xs.size, dtype=bool)
+    if "probe" not in cols.cache:
+        cols.cache["probe"] = grid_subset(cols, np.arange(0, cols.n_grid, max(1, cols.n_grid // _PROBE_COLUMNS)))
+    y_lo = max(-problem.y_valid, problem.y_window[0])
+    y_hi = min(problem.y_valid, problem.y_window[1])
+    for i, (iv, _) in enumerate(complement(forbidden(cols.cache["probe"], xs, [0], hull=False))):
+        blocked[i] = not np.any(np.maximum(iv[:, 0], y_lo) < np.minimum(iv[:, 1], y_hi))
+    return blocked
+
+
+def _blocked_line(problem: Problem, x: Any, cbr: ComplexBreaks) -> LineData:
+    """The :class:`LineData` of a line with no admissible interval (what :func:`_scan_block` gives it)."""
+    iv = np.zeros((0, 2))
+    iv, ends, cx = _cut_missed_intervals(problem, float(x), iv, [], cbr)
+    breaks, kinds, errs = _line_breaks(problem, x, cx)
+    return LineData(float(x), iv, [iv], breaks, kinds, ends, np.full(breaks.size + 1, -1, dtype=int), errs)
 
 
 def _crossings(problem: Problem, xs: np.ndarray) -> list[ComplexBreaks]:
