@@ -169,3 +169,25 @@ def test_lines_forbidden_on_the_probe_are_forbidden_on_the_whole_grid(monkeypatc
         assert all(np.array_equal(p, q) for p, q in zip(a.per_constraint, b.per_constraint))
         assert np.array_equal(a.breaks, b.breaks) and np.array_equal(a.break_kind, b.break_kind)
         assert np.array_equal(a.break_err, b.break_err) and a.ends == b.ends  # (comp: set later, by the cells)
+
+
+@pytest.mark.parametrize("window, fewer", [((-10.0, 10.0), True), ((-20.0, 5.0), True), ((0.5, 3.0), True),
+                                           ((-1e5, 1e5), False), ((-7e6, -6e6), False), ((1e8, 2e8), False)])
+def test_windowed_crossings_give_the_breaks_of_all_crossings(zv_designs, window, fewer):
+    """A line's D-decomposition breaks from the crossings near the window (issue #15, wave 7) are those from
+    all of the curve's crossings: the window's own and the nearest beyond each end (or none beyond: then the
+    band grows to the whole curve).  Near the design's window, a small part of the ~2000 crossings a line."""
+    from dataclasses import replace
+
+    from posicast.tune.boundaries import complex_breaks
+    from posicast.tune.scan import _line_breaks
+
+    problem = replace(zv_designs[0].region.problem, y_window=window)
+    xs = np.concatenate([np.linspace(-3.0, 3.0, 41), [0.0, 1e-6, 50.0, -400.0]])
+    near = complex_breaks(problem.columns, problem.curve, xs, window=window)
+    every = complex_breaks(problem.columns, problem.curve, xs)
+    if fewer:
+        assert sum(c.ky.size for c in near) < 0.2 * sum(c.ky.size for c in every)
+    for x, a, b in zip(xs, near, every):
+        for p, q in zip(_line_breaks(problem, x, a), _line_breaks(problem, x, b)):
+            assert np.array_equal(p, q)

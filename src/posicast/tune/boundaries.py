@@ -195,13 +195,17 @@ def complex_curve(cols: Columns) -> ComplexCurve:
 class _Polyline(NamedTuple):
     """The curve's usable segments in one orientation, for :func:`_curve_crossings`: the coordinate
     crossed (``along``) and the other one (``across``), the segments not across a jump (a pole of the
-    curve) and the closed span of ``along`` over each."""
+    curve), the closed span of ``along`` over each, and a span of ``across`` that holds every crossing
+    value :func:`_curve_crossings` can compute on the segment (the closed span, widened by 1e-14 of the
+    segment's size for the interpolation's rounding)."""
 
     along: np.ndarray
     across: np.ndarray
     seg: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
+    across_lo: np.ndarray
+    across_hi: np.ndarray
 
 
 def _polyline(c_along: np.ndarray, c_across: np.ndarray) -> _Polyline:
@@ -209,11 +213,14 @@ def _polyline(c_along: np.ndarray, c_across: np.ndarray) -> _Polyline:
     jump = np.abs(c_across[1:] - c_across[:-1]) > 1e3 * (1.0 + np.minimum(np.abs(c_across[:-1]), np.abs(c_across[1:])))
     jump |= np.abs(q - p) > 1e3 * (1.0 + np.minimum(np.abs(p), np.abs(q)))
     seg = np.flatnonzero(~jump & ~np.isnan(p) & ~np.isnan(q))
-    return _Polyline(c_along, c_across, seg, np.minimum(p[seg], q[seg]), np.maximum(p[seg], q[seg]))
+    c0, c1 = c_across[seg], c_across[seg + 1]
+    pad = 1e-14 * np.maximum(np.abs(c0), np.abs(c1))
+    return _Polyline(c_along, c_across, seg, np.minimum(p[seg], q[seg]), np.maximum(p[seg], q[seg]),
+                     np.minimum(c0, c1) - pad, np.maximum(c0, c1) + pad)
 
 
-def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True) -> tuple[np.ndarray, np.ndarray,
-                                                                                         np.ndarray]:
+def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True,
+                     across: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where the polyline ``(line.along, line.across)`` crosses ``along = level``: (row, value across, column).
 
     A segment ``j`` crosses level ``i`` when ``(along[j] - level[i])`` and ``(along[j + 1] - level[i])``
@@ -221,7 +228,8 @@ def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True) -
     a jump (a pole of the curve) are skipped.  The levels are sorted once and each segment's span is
     located among them by binary search, so the cost grows with the number of segments and of
     crossings, not with their product.  Sorted by row, then column (``ordered``; else in no particular
-    order).
+    order).  With ``across = (lo, hi)``, only the segments that can give a value in ``[lo, hi]``: every
+    crossing with its value there, and perhaps others.
     """
     level = np.asarray(level, dtype=float)
     c_along, c_across, seg = line.along, line.across, line.seg
@@ -231,7 +239,10 @@ def _curve_crossings(line: _Polyline, level: np.ndarray, ordered: bool = True) -
     seg_lo, seg_hi = line.lo, line.hi
     if sl.size:  # only the segments whose span meets the levels' range (issue #15: a lumped shaper's curve
         # has ~10^5 segments, most of them far out, and the binary searches cost more than this test)
-        near = np.flatnonzero((seg_hi >= sl[0]) & (seg_lo <= sl[-1]))
+        near = (seg_hi >= sl[0]) & (seg_lo <= sl[-1])
+        if across is not None:
+            near &= (line.across_hi >= across[0]) & (line.across_lo <= across[1])
+        near = np.flatnonzero(near)
         seg, seg_lo, seg_hi = seg[near], seg_lo[near], seg_hi[near]
     start = np.searchsorted(sl, seg_lo, side="left")
     count = np.searchsorted(sl, seg_hi, side="right") - start
@@ -268,13 +279,59 @@ class ComplexBreaks(NamedTuple):
     error: np.ndarray
 
 
-def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[ComplexBreaks]:
-    """Per line ``kx = x[i]``: the complex-root crossings, interpolated between grid columns."""
-    if curve.ok:
+def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray,
+                   window: tuple[float, float] | None = None) -> list[ComplexBreaks]:
+    """Per line ``kx = x[i]``: the complex-root crossings, interpolated between grid columns.
+
+    With ``window = (lo, hi)`` (and the curve form usable), a line's crossings are those from ``lo`` down
+    to the nearest one below it and from ``hi`` up to the nearest one above it (each, if there is one), and
+    perhaps others: what :func:`~posicast.tune.scan.scan_lines` keeps of a line's crossings (issue #15: with a lumped
+    shaper the curve crosses each line ~2000 times, nearly all of them at gains far outside the window).
+    """
+    if not curve.ok:
+        return _complex_breaks_general(cols, curve, x)
+    if window is None or not (np.isfinite(window[0]) and np.isfinite(window[1])):
         rows, ys, cc = _curve_crossings(curve.polyline("x"), x)
-        err = np.abs(curve.y[cc + 1] - curve.y[cc])
-        return [ComplexBreaks(ys[k], cc[k], err[k]) for k in _split_rows(rows, x.size)]
-    return _complex_breaks_general(cols, curve, x)
+        return _breaks_of(curve, rows, ys, cc, x.size)
+    return _windowed_breaks(curve, x, float(window[0]), float(window[1]))
+
+
+def _breaks_of(curve: ComplexCurve, rows: np.ndarray, ys: np.ndarray, cc: np.ndarray, m: int) -> list[ComplexBreaks]:
+    err = np.abs(curve.y[cc + 1] - curve.y[cc])
+    return [ComplexBreaks(ys[k], cc[k], err[k]) for k in _split_rows(rows, m)]
+
+
+def _windowed_breaks(curve: ComplexCurve, x: np.ndarray, lo: float, hi: float) -> list[ComplexBreaks]:
+    """:func:`complex_breaks` with a window: the crossings within a band ``[lo - M, hi + M]``, ``M`` the
+    window's width, then ten times wider for the lines whose nearest crossing below ``lo`` or above ``hi``
+    is not inside the band clear of its edge (1e-9 relative: the scan's duplicate test must see the same
+    neighbours), until the band holds the whole curve."""
+    line = curve.polyline("x")
+    every_lo = float(line.across_lo.min()) if line.seg.size else lo
+    every_hi = float(line.across_hi.max()) if line.seg.size else hi
+    out: list[ComplexBreaks | None] = [None] * x.size
+    pending = np.arange(x.size)
+    width = max(hi - lo, 1e-300)
+    while pending.size:
+        b_lo, b_hi = lo - width, hi + width
+        whole = b_lo <= every_lo and b_hi >= every_hi
+        rows, ys, cc = _curve_crossings(line, x[pending], across=None if whole else (b_lo, b_hi))
+        for i, b in zip(pending, _breaks_of(curve, rows, ys, cc, pending.size)):
+            out[i] = b
+        if whole:
+            break
+        # per line, the nearest crossing below lo and above hi, and whether each is clear of the band's edge
+        m = pending.size
+        nearest_below = np.full(m, -np.inf)
+        np.maximum.at(nearest_below, rows[ys < lo], ys[ys < lo])
+        nearest_above = np.full(m, np.inf)
+        np.minimum.at(nearest_above, rows[ys > hi], ys[ys > hi])
+        with np.errstate(invalid="ignore"):
+            done = ((nearest_below - b_lo > 1e-9 * (1.0 + np.abs(nearest_below)))
+                    & (b_hi - nearest_above > 1e-9 * (1.0 + np.abs(nearest_above))))
+        pending = pending[~done]
+        width *= 10.0
+    return out  # type: ignore[return-value]
 
 
 def _complex_breaks_general(cols: Columns, curve: ComplexCurve, x: np.ndarray) -> list[ComplexBreaks]:
@@ -334,7 +391,11 @@ def _curve_hits(cols: Columns, curve: ComplexCurve, lo: np.ndarray, hi: np.ndarr
     if curve.ok:
         for k in range(0, ys.size, block):
             sl = slice(k, k + block)
-            rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl], ordered=False)
+            if not ys[sl].size:
+                continue
+            # only the segments that can cross inside some [lo, hi] (issue #15)
+            rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl], ordered=False,
+                                           across=(float(lo[sl].min()), float(hi[sl].max())))
             inside = (xs >= lo[sl][rows]) & (xs <= hi[sl][rows])
             hit[sl] = np.bincount(rows[inside], minlength=ys[sl].size) > 0
         return hit

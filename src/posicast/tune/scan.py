@@ -318,8 +318,8 @@ def _crossings(problem: Problem, xs: np.ndarray) -> list[ComplexBreaks]:
     is used (each line's crossings are the same as alone; issue #15: one pass over the curve's segments
     instead of one per group of lines), else in blocks of lines that keep the (lines x columns) arrays small."""
     cols = problem.columns
-    if problem.curve.ok:
-        return complex_breaks(cols, problem.curve, xs)
+    if problem.curve.ok:  # _line_breaks keeps the window's crossings and the nearest beyond each end
+        return complex_breaks(cols, problem.curve, xs, window=problem.y_window)
     step = max(1, int(2_000_000 // max(1, cols.u.size)))
     return [c for k in range(0, xs.size, step) for c in complex_breaks(cols, problem.curve, xs[k: k + step])]
 
