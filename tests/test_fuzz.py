@@ -14,8 +14,8 @@ reproducible).  Every call must end in
 * a result without NaN (and passing the entry's own invariant check, if any);
 
 never an exception from numpy/scipy/pathlib or of another type, a NaN, a
-RuntimeWarning, a hang (per-call SIGALRM time limit) or unbounded memory (the
-address space is limited during each call; a MemoryError is a failure).
+RuntimeWarning, a hang (a per-call CPU time limit, and a wall-clock one four times longer) or unbounded
+memory (the address space is limited during each call; a MemoryError is a failure).
 
 The command line (``posicast.cli.main``, in-process, with ``tmp_path`` as the
 working directory) gets the same treatment per subcommand: an error is exactly
@@ -77,7 +77,7 @@ SUBPACKAGES = tuple(sorted(
 # Modules whose __all__ is public although their package's __init__ does not re-export it.
 EXTRA_MODULES = ("posicast.io.export",)
 
-CALL_SECONDS = 3.0  # per-call time limit (SIGALRM); the tuner and the identification get 6 s
+CALL_SECONDS = 3.0  # per-call CPU time limit (see call_limits); the tuner and the identification get 6 s
 MEMORY_HEADROOM = 2 << 30  # address space a single call may add (RLIMIT_AS)
 HYPOTHESIS_EXAMPLES = 3  # generated inputs per entry and argument, on top of the fixed pools
 
@@ -253,7 +253,7 @@ def short(value: Any, limit: int = 60) -> str:
 
 # ====================================================================== per-call limits
 class CallTimeout(BaseException):
-    """Raised by SIGALRM inside a call that exceeds its time limit (BaseException: no library catches it)."""
+    """Raised inside a call that exceeds its time limit (BaseException: no library catches it)."""
 
 
 def _vm_size() -> int:
@@ -267,14 +267,23 @@ def _vm_size() -> int:
     return 0
 
 
+#: the wall-clock limit of a call, in multiples of its CPU limit (a call blocked without using the CPU)
+WALL_FACTOR = 4.0
+
+
 @contextmanager
 def call_limits(seconds: float):
-    """Time limit (SIGALRM) and address-space limit (RLIMIT_AS = current size + headroom) for one call."""
+    """Time limits and address-space limit (RLIMIT_AS = current size + headroom) for one call.
+
+    The limit is on the process's CPU time (SIGPROF), so that a loaded machine (CI on 2 cores shared with
+    other jobs) does not fail a call that is merely slowed down; a call that waits without computing is
+    stopped by a wall-clock limit ``WALL_FACTOR`` times longer (SIGALRM)."""
 
     def on_alarm(signum: int, frame: Any) -> None:
         raise CallTimeout()
 
     old_handler = signal.signal(signal.SIGALRM, on_alarm)
+    old_prof = signal.signal(signal.SIGPROF, on_alarm)
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     vm = _vm_size()
     limited = vm > 0
@@ -283,12 +292,15 @@ def call_limits(seconds: float):
         if hard != resource.RLIM_INFINITY:
             cap = min(cap, hard)
         resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
-    signal.setitimer(signal.ITIMER_REAL, seconds)
+    signal.setitimer(signal.ITIMER_PROF, seconds)
+    signal.setitimer(signal.ITIMER_REAL, WALL_FACTOR * seconds)
     try:
         yield
     finally:
+        signal.setitimer(signal.ITIMER_PROF, 0.0)
         signal.setitimer(signal.ITIMER_REAL, 0.0)
         signal.signal(signal.SIGALRM, old_handler)
+        signal.signal(signal.SIGPROF, old_prof)
         if limited:
             resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
 
@@ -1162,7 +1174,7 @@ def run_call(entry: Entry, param: str | None, value: Any, timeout: float | None 
                 result = entry.call(**kwargs)
     except CallTimeout as exc:
         fr = _deepest_posicast_frame(exc.__traceback__)
-        return False, f"{head}: no answer within {limit:g} s (at {_where(fr)})", \
+        return False, f"{head}: no answer within {limit:g} s of CPU (at {_where(fr)})", \
             owner_of(fr.filename) if fr else own_area_owner
     except MemoryError as exc:
         fr = _deepest_posicast_frame(exc.__traceback__)
