@@ -71,6 +71,30 @@ class RunTimeout(Exception):
     """One run went past its time limit."""
 
 
+def previous_src(ref: str) -> str | None:
+    """The ``src`` folder of this repository at commit ``ref``, extracted once (``git archive``) into
+    ``.venv/.bench-previous/<ref>``: the "previous posicast" a benchmark runs beside this one, in the same
+    session on the same machine.  None when git or the commit is not there (e.g. a shallow clone)."""
+    import io
+    import pathlib
+    import subprocess
+    import tarfile
+
+    root = pathlib.Path(__file__).resolve().parent.parent
+    dest = root / ".venv" / ".bench-previous" / ref
+    if (dest / "src" / "posicast" / "__init__.py").is_file():
+        return str(dest / "src")
+    try:
+        tar = subprocess.run(["git", "-C", str(root), "archive", "--format=tar", ref, "src"], check=True,
+                             capture_output=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    dest.mkdir(parents=True, exist_ok=True)
+    with tarfile.open(fileobj=io.BytesIO(tar)) as tf:
+        tf.extractall(dest, filter="data")
+    return str(dest / "src")
+
+
 @contextlib.contextmanager
 def time_limit(seconds: float | None):
     """Raise :class:`RunTimeout` in the main thread after ``seconds`` (Unix only)."""
