@@ -291,8 +291,7 @@ def complex_breaks(cols: Columns, curve: ComplexCurve, x: np.ndarray,
     if not curve.ok:
         return _complex_breaks_general(cols, curve, x)
     if window is None or not (np.isfinite(window[0]) and np.isfinite(window[1])):
-        rows, ys, cc = _curve_crossings(curve.polyline("x"), x)
-        return _breaks_of(curve, rows, ys, cc, x.size)
+        return _breaks_of(curve, *_curve_crossings(curve.polyline("x"), x), x.size)
     return _windowed_breaks(curve, x, float(window[0]), float(window[1]))
 
 
@@ -301,36 +300,41 @@ def _breaks_of(curve: ComplexCurve, rows: np.ndarray, ys: np.ndarray, cc: np.nda
     return [ComplexBreaks(ys[k], cc[k], err[k]) for k in _split_rows(rows, m)]
 
 
+#: a curve with fewer segments than this is crossed whole (windowing would cost more than it saves)
+_WINDOWED_ABOVE = 8000
+
+
 def _windowed_breaks(curve: ComplexCurve, x: np.ndarray, lo: float, hi: float) -> list[ComplexBreaks]:
     """:func:`complex_breaks` with a window: the crossings within a band ``[lo - M, hi + M]``, ``M`` the
     window's width, then ten times wider for the lines whose nearest crossing below ``lo`` or above ``hi``
     is not inside the band clear of its edge (1e-9 relative: the scan's duplicate test must see the same
-    neighbours), until the band holds the whole curve."""
+    neighbours), while the band holds at most a quarter of the curve's segments; then, for the lines still
+    pending, all of their crossings.  A small curve is crossed whole at once."""
     line = curve.polyline("x")
-    every_lo = float(line.across_lo.min()) if line.seg.size else lo
-    every_hi = float(line.across_hi.max()) if line.seg.size else hi
     out: list[ComplexBreaks | None] = [None] * x.size
     pending = np.arange(x.size)
     width = max(hi - lo, 1e-300)
-    while pending.size:
+    while pending.size and line.seg.size >= _WINDOWED_ABOVE:
         b_lo, b_hi = lo - width, hi + width
-        whole = b_lo <= every_lo and b_hi >= every_hi
-        rows, ys, cc = _curve_crossings(line, x[pending], across=None if whole else (b_lo, b_hi))
-        for i, b in zip(pending, _breaks_of(curve, rows, ys, cc, pending.size)):
-            out[i] = b
-        if whole:
+        if np.count_nonzero((line.across_hi >= b_lo) & (line.across_lo <= b_hi)) > 0.25 * line.seg.size:
             break
+        rows, ys, cc = _curve_crossings(line, x[pending], across=(b_lo, b_hi))
         # per line, the nearest crossing below lo and above hi, and whether each is clear of the band's edge
-        m = pending.size
-        nearest_below = np.full(m, -np.inf)
+        nearest_below = np.full(pending.size, -np.inf)
         np.maximum.at(nearest_below, rows[ys < lo], ys[ys < lo])
-        nearest_above = np.full(m, np.inf)
+        nearest_above = np.full(pending.size, np.inf)
         np.minimum.at(nearest_above, rows[ys > hi], ys[ys > hi])
         with np.errstate(invalid="ignore"):
             done = ((nearest_below - b_lo > 1e-9 * (1.0 + np.abs(nearest_below)))
                     & (b_hi - nearest_above > 1e-9 * (1.0 + np.abs(nearest_above))))
+        for i, b, ok in zip(pending, _breaks_of(curve, rows, ys, cc, pending.size), done):
+            if ok:
+                out[i] = b
         pending = pending[~done]
         width *= 10.0
+    if pending.size:
+        for i, b in zip(pending, _breaks_of(curve, *_curve_crossings(line, x[pending]), pending.size)):
+            out[i] = b
     return out  # type: ignore[return-value]
 
 
