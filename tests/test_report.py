@@ -292,7 +292,8 @@ def test_demo_links_the_seed_reproductions(tmp_path, monkeypatch) -> None:
     written by ``make reproduce``, and links it (``reproduce/index.html``, where ``make reproduce`` writes it).
 
     The sections are replaced by their headings: this checks the page's structure and links, not the numbers
-    (the sections themselves are unchanged by the split: benchmarks/RESULTS.md, wave 7)."""
+    (the sections' content did not change when they moved between the reports; that was checked once, section
+    by section, against the all-in-one demo)."""
     from posicast_reports import demo, reproduce
 
     def front(report: Report) -> None:

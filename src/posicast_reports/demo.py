@@ -9,13 +9,12 @@ Klipper test and the repository's real resonance files), a pointer to the seed r
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 if __name__ == "__main__":
-    from posicast_reports.progress import one_blas_thread
+    from posicast_reports.job import one_blas_thread
 
     one_blas_thread()  # before numpy loads its BLAS
 
@@ -27,7 +26,7 @@ from posicast.report.plant import plant_part
 from .html import NUMBER_FORMATS, Report
 from .identification_report import calibration_section
 from .optimal_report import optimal_section
-from .progress import Progress
+from .job import Progress, command_line, finish
 from .sweep_report import sweep_section
 
 __all__ = ["build_report", "user_first", "Progress", "REPRODUCE_LINK"]
@@ -100,19 +99,12 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     say("optimal shapers")
     sweep_section(report)
     say("sweeps (seed 000 stability chart)")
-    report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
-    path = report.write()
-    say(f"wrote {path}")
-    return path
+    return finish(report, t0, say)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", default="report", help="output folder (default: report)")
-    args = parser.parse_args(argv)
-    path = build_report(args.out)
-    print(f"wrote {path}")
-    return 0
+    """``python -m posicast_reports.demo [--out DIR]``."""
+    return command_line(build_report, "report", __doc__, argv)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ main job, ``make demo`` (:mod:`posicast_reports.demo`), links this report and is
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -17,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 if __name__ == "__main__":
-    from posicast_reports.progress import one_blas_thread
+    from posicast_reports.job import one_blas_thread
 
     one_blas_thread()  # before numpy loads its BLAS
 
@@ -34,7 +33,7 @@ from posicast.spectra import roots
 
 from .html import NUMBER_FORMATS, Report
 from .identification_report import seed002_identification_section
-from .progress import Progress
+from .job import Progress, command_line, finish
 from .seed001_report import seed001_section
 from .seed003_report import seed003_section
 
@@ -367,19 +366,12 @@ def build_report(out: str | Path, progress: Progress | None = None) -> Path:
     say("seed 001 tuning (Table 1, Fig. 5-12)")
     seed003_section(report)
     say("seed 003 QFT inner loop")
-    report.paragraph(f"<small>Generated in {time.perf_counter() - t0:.1f} s.</small>")
-    path = report.write()
-    say(f"wrote {path}")
-    return path
+    return finish(report, t0, say)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--out", default="report/reproduce", help="output folder (default: report/reproduce)")
-    args = parser.parse_args(argv)
-    path = build_report(args.out)
-    print(f"wrote {path}")
-    return 0
+    """``python -m posicast_reports.reproduce [--out DIR]``."""
+    return command_line(build_report, "report/reproduce", __doc__, argv)
 
 
 if __name__ == "__main__":

@@ -1,17 +1,20 @@
-"""What the report jobs (``make demo``, ``make reproduce``) share: one BLAS thread, progress lines.
+"""What the two report jobs (``make demo``, ``make reproduce``) share.
 
-This module imports neither numpy nor posicast, so a job can call :func:`one_blas_thread` before
-numpy loads its BLAS.
+One BLAS thread, a progress line per section, the report's closing line and the command line
+(``--out DIR``).  This module imports neither numpy nor posicast, so a job can call
+:func:`one_blas_thread` before numpy loads its BLAS.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
-from typing import TextIO
+from pathlib import Path
+from typing import Any, Callable, TextIO
 
-__all__ = ["Progress", "one_blas_thread"]
+__all__ = ["Progress", "one_blas_thread", "finish", "command_line"]
 
 
 def one_blas_thread() -> None:
@@ -43,3 +46,22 @@ class Progress:
         print(f"[{self.name} {wall - self.start_wall:6.1f} s] {what}: {wall - self.wall:.1f} s "
               f"(CPU {cpu - self.cpu:.1f} s, total CPU {cpu - self.start_cpu:.1f} s)", file=self.stream, flush=True)
         self.wall, self.cpu = wall, cpu
+
+
+def finish(report: Any, started: float, say: Callable[[str], None]) -> Path:
+    """Close ``report`` with its generation time (since ``started``, a ``time.perf_counter()`` reading),
+    write it into its folder, say so, and return the path of ``index.html``."""
+    report.paragraph(f"<small>Generated in {time.perf_counter() - started:.1f} s.</small>")
+    path = report.write()
+    say(f"wrote {path}")
+    return path
+
+
+def command_line(build: Callable[[str], Path], default_out: str, description: str | None,
+                 argv: list[str] | None = None) -> int:
+    """A report job's command line: ``--out DIR`` (default ``default_out``), ``build(DIR)``, ``wrote PATH``."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--out", default=default_out, help=f"output folder (default: {default_out})")
+    args = parser.parse_args(argv)
+    print(f"wrote {build(args.out)}")
+    return 0
