@@ -25,8 +25,8 @@ from posicast.report.plant import plant_part
 
 from .html import NUMBER_FORMATS, Report
 from .identification_report import calibration_section
-from .optimal_report import optimal_section
 from .job import Progress, command_line, finish
+from .optimal_report import optimal_section
 from .sweep_report import sweep_section
 
 __all__ = ["build_report", "user_first", "Progress", "REPRODUCE_LINK"]

@@ -184,6 +184,7 @@ def _ei_section(report: Report) -> None:
                 "original coefficients, verified against the exact solution; see the source of "
                 "<code>posicast.shapers.ei</code> for the numbers.")
 
+
 # Seed 000 section V: G = 1 / (s^2 + s) (eq. 25), F = s / (s^2 + 0.6 s + 100) (eq. 26),
 # C = (10 s + 10) / (0.01 s + 1) (eq. 27); the shapers target F's mode.
 SEED000_G = ([1.0], [1.0, 1.0, 0.0])
@@ -271,7 +272,6 @@ def _spectra_section(report: Report) -> None:
                   "max relative residual", "edge shifted", "time [ms]"], rows, digits=[4, 4, 4, 4, 4, 4, 1])
     report.note("An edge is shifted outward when a root lies on it (s = 0 for the distributed shapers, whose "
                 "numerators vanish there); the count then covers the shifted rectangle.")
-
 
 
 def _simulation_section(report: Report) -> None:
