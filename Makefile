@@ -1,14 +1,17 @@
 # Two set-up commands, both safe on a fresh clone:
-#   make demo   -> creates .venv, installs posicast (and posicast_reports), writes report/index.html
-#   make test   -> creates .venv if needed, runs the whole suite
-#   make bench  -> also installs the bench extra (comparators), runs benchmarks/
+#   make demo      -> creates .venv, installs posicast (and posicast_reports), writes report/index.html
+#   make test      -> creates .venv if needed, runs the whole suite
+# and:
+#   make reproduce -> creates .venv if needed, writes the seed papers' reproductions (not part of the library)
+#                     to report/reproduce/index.html, linked from the demo report
+#   make bench     -> also installs the bench extra (comparators), runs benchmarks/
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 BENCH_STAMP := $(VENV)/.bench-installed
 
-.PHONY: demo test bench clean venv chromium
+.PHONY: demo reproduce test bench clean venv chromium
 
 venv: $(STAMP)
 
@@ -20,6 +23,9 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	MPLBACKEND=Agg $(PY) -m posicast_reports.demo --out report
+
+reproduce: $(STAMP)
+	MPLBACKEND=Agg $(PY) -m posicast_reports.reproduce --out report/reproduce
 
 # The designer's browser test (tests/test_serve_browser.py) drives Debian's Chromium through the
 # playwright package; it fails, never skips, without it, so the test target installs it when missing.

@@ -22,10 +22,10 @@ numerator from one linear least-squares solve there; only the direct fit's
 the direct fit.  BLAS on one thread for both (OPENBLAS_NUM_THREADS=1, see
 bench_simulate.py).
 
-Third table (issue #15, wave 5): the OE fits of the demo's identification section (``make demo``:
-seed 002 Tables 1-3 and the acceptance scenarios, 880 fits of 20-2000 samples, the seeds of
-``posicast_reports.identification_report.trial_stats``), CPU time (``time.process_time``), with
-posicast's search (identification/trust_region.py) and, alternating in the same run, with
+Third table (issue #15, wave 5): the OE fits of the demo's identification section (``make demo``
+until wave 7, ``make reproduce`` since: seed 002 Tables 1-3 and the acceptance scenarios, 880 fits
+of 20-2000 samples, the seeds of ``posicast_reports.identification_report.trial_stats``), CPU time
+(``time.process_time``), with posicast's search (identification/trust_region.py) and, alternating in the same run, with
 scipy's ``least_squares(method="trf")`` in its place (the search before wave 5; every other part
 of the fit the same).  The previous posicast figure is the whole fit before wave 5 (commit
 0f959c0), measured alternating with this one on the same machine (benchmarks/RESULTS.md).
@@ -64,7 +64,8 @@ GOAL_SCALE = 1.0
 PREVIOUS_DEMO = 6.37
 #: issue #15 (wave 5): the demo's OE fits >= 2.5x faster, <= 2.5 s CPU
 GOAL_DEMO = 2.5
-#: the OE scenarios of posicast_reports.identification_report.identification_section:
+#: the OE scenarios of posicast_reports.identification_report.seed002_identification_section
+#: (make reproduce; before wave 7 in the demo):
 #: (input, samples, output noise, trials, step period, input noise)
 DEMO = ([("step", n, 0.01, 30, None, 0.0) for n in (20, 40, 100, 200, 400)]
         + [(k, 20, 0.01, 30, None, 0.0) for k in ("impulse", "step", "ramp", "harmonic")]

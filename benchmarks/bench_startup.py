@@ -6,8 +6,9 @@
 * ``posicast --help`` (``python -m posicast --help``, fresh process); goal <= 0.5 s.
 * ``import posicast`` followed by the first use of a public name
   (``posicast.design``): what a user pays for the first design (no goal; for the record).
-* the demo report (``python -m posicast_reports.demo``, into a temporary folder):
-  CPU time of the whole process (user + system, children included); goal <= 20 s.
+* the demo report (``python -m posicast_reports.demo``, into a temporary folder: ``make demo``'s
+  job, without the seed reproductions of ``make reproduce``): CPU time of the whole process
+  (user + system, children included); goal <= 20 s.
   One run (``--quick``: skipped), with the CPU of each section read from the
   report's progress lines and the load average before and after (the CPU time of
   a run grows with the machine's load: record it with the figure).
@@ -39,7 +40,8 @@ def _wall(cmd: list[str], runs: int) -> list[float]:
     return out
 
 
-_PROGRESS = re.compile(r"^\[demo +[0-9.]+ s\] (?P<what>.*): [0-9.]+ s \(CPU (?P<cpu>[0-9.]+) s, total")
+#: a progress line of the demo (``[demo ...]``) or of the seed reproductions (``[reproduce ...]``)
+_PROGRESS = re.compile(r"^\[(?:demo|reproduce) +[0-9.]+ s\] (?P<what>.*): [0-9.]+ s \(CPU (?P<cpu>[0-9.]+) s, total")
 
 
 def _demo_cpu() -> tuple[float, float, list[tuple[str, float]]]:

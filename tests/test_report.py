@@ -9,6 +9,7 @@ also holds a number in scientific notation, rows that disagree with the count in
 from __future__ import annotations
 
 import cmath
+import io
 import json
 import math
 import re
@@ -259,9 +260,9 @@ def test_toc_and_anchors_are_unique() -> None:
     assert parsed.toc_links == [f"#{i}" for i in ids] and set(ids) <= parsed.ids
 
 
-def test_demo_shaper_table_has_no_empty_band() -> None:
+def test_reproduce_shaper_table_has_no_empty_band() -> None:
     """An empty 5 % band reads 'none' with the reason, not 0.0000 / 1.0000–1.0000; |S(p)| has one format."""
-    from posicast_reports.demo import LINK, _band, _shaper_table
+    from posicast_reports.reproduce import LINK, _band, _shaper_table
 
     report = Report("t", "unused")
     report.section("shapers")
@@ -270,6 +271,90 @@ def test_demo_shaper_table_has_no_empty_band() -> None:
     _check_page(page)
     width, band = _band(SimpleNamespace(width=0.0, low=1.0, high=1.0), 0.071)  # what insensitivity gives then
     assert band == "none: V at the model 7.1 % > 5 %" and math.isnan(width)
+
+
+def _heading_only(name: str):
+    """A stand-in for an expensive report section: its heading, ``name``, and nothing else."""
+    def add(report: Report, *args, **kwargs) -> None:
+        report.section(name)
+    return add
+
+
+def _part_html(text: str, title: str) -> str:
+    """The HTML of the part titled ``title``: from its heading to the next part's."""
+    start = text.index(f">{title}</h2>")
+    end = text.find("<h2", start)
+    return text[start:] if end < 0 else text[start:end]
+
+
+def test_demo_links_the_seed_reproductions(tmp_path, monkeypatch) -> None:
+    """``make demo`` says near the top and in its contents that the seed reproductions are a separate report,
+    written by ``make reproduce``, and links it (``reproduce/index.html``, where ``make reproduce`` writes it).
+
+    The sections are replaced by their headings: this checks the page's structure and links, not the numbers
+    (the sections' content did not change when they moved between the reports; that was checked once, section
+    by section, against the all-in-one demo)."""
+    from posicast_reports import demo, reproduce
+
+    def front(report: Report) -> None:
+        report.part("Your data → your shaper")
+        report.part("Your plant → your loop")
+
+    monkeypatch.setattr(demo, "user_first", front)
+    for name in ("calibration_section", "optimal_section", "sweep_section"):
+        monkeypatch.setattr(demo, name, _heading_only(name))
+    out = tmp_path / "report"
+    stderr = io.StringIO()
+    text = demo.build_report(out, demo.Progress(stderr)).read_text(encoding="utf-8")
+    page = _Page(text)
+    _check_page(page)
+    assert [t for tag, t in page.headings if tag == "h2"] == [
+        "Your data → your shaper", "Your plant → your loop", "Printer calibration",
+        "Seed reproductions: a separate report", "Beyond the seeds"]
+    assert [t for tag, t in page.headings if tag == "h3"] == ["calibration_section", "optimal_section",
+                                                             "sweep_section"]
+    link = f'<a href="{demo.REPRODUCE_LINK}">'
+    top = text[:text.index("<nav")]
+    for html_ in (top, _part_html(text, "Seed reproductions: a separate report")):
+        assert link in html_ and "written by <code>make reproduce</code>" in html_
+    assert out / demo.REPRODUCE_LINK == out / "reproduce" / "index.html"  # the Makefile's folder
+    assert (out / "reproduce" / reproduce.DEMO_LINK).resolve() == (out / "index.html").resolve()
+    assert [line.split("]")[0].split()[0] for line in stderr.getvalue().splitlines()] == ["[demo"] * 5
+
+
+def test_reproduce_holds_the_seed_sections_in_order(tmp_path, monkeypatch) -> None:
+    """``make reproduce`` holds seed 002's identification and the seed sections, in the demo's former order,
+    links back to the demo report and prints a progress line per section.
+
+    Seed 002's trials run once per scenario (not 30 and 100); the other expensive sections are replaced by
+    their headings, the sensitivity figures left out."""
+    from posicast_reports import reproduce
+    from posicast_reports.identification_report import SEED002_TITLE, seed002_identification_section
+
+    monkeypatch.setattr(reproduce, "seed002_identification_section",
+                        lambda report: seed002_identification_section(report, trials=1, acceptance_trials=1))
+    monkeypatch.setattr(reproduce, "_sensitivity_figures", lambda report, mode, tag: None)
+    for name in ("_spectra_section", "_simulation_section", "seed001_section", "seed003_section"):
+        monkeypatch.setattr(reproduce, name, _heading_only(name))
+    stderr = io.StringIO()
+    out = tmp_path / "report" / "reproduce"
+    text = reproduce.build_report(out, reproduce.Progress(stderr, name="reproduce")).read_text(encoding="utf-8")
+    page = _Page(text)
+    _check_page(page)
+    assert page.headings == [
+        ("h2", "Identification (seed 002)"), ("h3", SEED002_TITLE), ("h2", "Seed reproductions"),
+        ("h3", "Seed 001 gantry crane sway mode: ω = 5.49 rad/s, ζ = 0.008"),
+        ("h3", "Seed 000 Quanser flexible-link mode: ω = 8.98 rad/s, ζ = 0.14"),
+        ("h3", "Seed 001 Table 1: distributed-delay shaper parameters"),
+        ("h3", "Seed 000: DZV for the flexible-link experiment"),
+        ("h3", "EI shaper: Singhose's damped curve fit against the exact solution"),
+        ("h3", "_spectra_section"), ("h3", "_simulation_section"), ("h3", "seed001_section"),
+        ("h3", "seed003_section")]
+    top = text[:text.index("<nav")]
+    assert f'<a href="{reproduce.DEMO_LINK}">' in top and "<code>make reproduce</code>" in top
+    lines = stderr.getvalue().splitlines()
+    assert len(lines) == 9 and all(line.startswith("[reproduce ") for line in lines)
+    assert lines[0].split("] ")[1].startswith("identification (seed 002")
 
 
 def test_readme_plant_file_is_the_example() -> None:

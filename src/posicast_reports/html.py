@@ -1,9 +1,10 @@
-"""The demo report's page: :class:`posicast.report.page.Page` written into a fixed folder.
+"""The reports' page: :class:`posicast.report.page.Page` written into a fixed folder.
 
 The HTML helpers (parts and sections with a table of contents, one number format per table
 column, tables that scroll instead of widening the page, code blocks) live in the library,
 :mod:`posicast.report.page`, because ``posicast report`` writes the same page for a user's own
-data; this module keeps the demo's ``Report(title, out_dir)`` spelling.
+data; this module keeps the reports' ``Report(title, out_dir)`` spelling (``make demo``,
+``make reproduce``).
 """
 
 from __future__ import annotations
@@ -13,7 +14,13 @@ from pathlib import Path
 
 from posicast.report.page import Page, format_column, format_number, output_dir
 
-__all__ = ["Report", "format_column", "format_number"]
+__all__ = ["Report", "NUMBER_FORMATS", "format_column", "format_number"]
+
+#: The reports' note on number formats (under each report's introduction).
+NUMBER_FORMATS = (
+    "<p><small>Number formats: one per table column; <code>&lt; 1e-12</code> is a value at rounding level (a "
+    "residual that is zero in exact arithmetic), <code>–</code> none. Residual vibration uses the Singer-Seering "
+    "normalisation V = e<sup>-ζω t<sub>end</sub></sup>|S(p)| (seeds 003, 004) unless stated.</small></p>")
 
 
 class Report(Page):

@@ -1,4 +1,10 @@
-"""Report section for ``make demo``: seed 002 Tables 1-3 re-run, method comparison, Klipper calibration."""
+"""Identification and calibration sections of the reports.
+
+:func:`seed002_identification_section` (``make reproduce``): seed 002 Tables 1-3 re-run as seeded
+Monte-Carlo trials, the acceptance scenario, every method on one record.
+:func:`calibration_section` (``make demo``): posicast's calibration of a synthetic Klipper test and of
+every real resonance file in the repository beside Klipper's own pick.
+"""
 
 from __future__ import annotations
 
@@ -18,9 +24,13 @@ from posicast.testing.synthetic_data import klipper_dataset, synthetic
 
 from .html import Report
 
-__all__ = ["identification_section", "trial_stats", "SEED_MODE"]
+__all__ = ["seed002_identification_section", "calibration_section", "trial_stats", "SEED_MODE", "SEED002_TITLE",
+           "CALIBRATION_TITLE"]
 
 SEED_MODE = Mode.from_hz(28.0, 0.05)  # seed 002 section 3.2.1: 28 Hz, zeta 0.05, 400 Hz
+#: The headings of the two sections
+SEED002_TITLE = "Identification of lightly damped modes (seed 002 sections 3-4)"
+CALIBRATION_TITLE = "Klipper calibration: a synthetic test and real resonance tests"
 
 
 def trial_stats(method: str, input: str, n: int, noise: float, trials: int, *, input_noise: float = 0.0,
@@ -52,14 +62,13 @@ def _pm(st: dict[str, Any], key: str) -> str:
     return "–" if not math.isfinite(b) else f"{100 * b:+.2f} ± {100 * s:.2f}"
 
 
-def identification_section(report: Report, trials: int = 30, acceptance_trials: int = 100,
-                           calibrations: Mapping[Path, Calibration] | None = None) -> None:
-    """Add the identification section (issue #5) to a :class:`posicast_reports.html.Report`.
+def seed002_identification_section(report: Report, trials: int = 30, acceptance_trials: int = 100) -> None:
+    """Add seed 002's identification tables (issue #5) to a :class:`posicast_reports.html.Report`.
 
-    ``calibrations``: calibrations already made of some of the real files (by resolved path), reused
-    instead of calibrating them again (the demo's first part calibrates one of them)."""
-    known = {Path(p).resolve(): c for p, c in (calibrations or {}).items()}
-    report.section("Identification of lightly damped modes (seed 002 sections 3-4)")
+    Seed 002 Tables 1-3 re-run as ``trials`` seeded Monte-Carlo trials per scenario (ARX and OE), the
+    acceptance scenario with ``acceptance_trials`` trials per input, and every method on one record.
+    """
+    report.section(SEED002_TITLE)
     report.paragraph(
         "True system: seed 002 eq. 16, 28 Hz, ζ = 0.05, sampled exactly (zero-order hold) at 400 Hz; 12-bit "
         "quantisation; white output noise of the stated fraction of the output's peak-to-peak range (standard "
@@ -134,6 +143,17 @@ def identification_section(report: Report, trials: int = 30, acceptance_trials: 
                      "resonance sits at fs/4; posicast inverts the exact bandwidth for any resonance angle.")
     report.table(["method", "f [Hz]", "95 % f", "ζ", "95 % ζ", "fit %", "whiteness p"], rows, digits=4)
 
+
+def calibration_section(report: Report, calibrations: Mapping[Path, Calibration] | None = None) -> None:
+    """Add the printer calibration section to a :class:`posicast_reports.html.Report`.
+
+    posicast's calibration of a synthetic Klipper test (true modes known) and of every real resonance
+    file in ``tests/data/real`` beside Klipper's own pick.  ``calibrations``: calibrations already made
+    of some of the real files (by resolved path), reused instead of calibrating them again (the demo's
+    first part calibrates one of them).
+    """
+    known = {Path(p).resolve(): c for p, c in (calibrations or {}).items()}
+    report.section(CALIBRATION_TITLE)
     # Klipper calibration: a log made the way Klipper's current test excites, and real files
     truth = [Mode.from_hz(42.0, 0.08), Mode.from_hz(63.0, 0.06)]
     cal = calibrate(klipper_dataset(truth, gains=[0.6, 0.4], seed=1), firmware="all")

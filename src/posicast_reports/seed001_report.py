@@ -1,4 +1,4 @@
-"""Report section for ``make demo``: seed 001's gantry-crane case study re-run with :mod:`posicast.tune`.
+"""Report section for ``make reproduce``: seed 001's gantry-crane case study re-run with :mod:`posicast.tune`.
 
 Seed 001 (Goubej, Schlegel, Vyhlídal, IFAC 2020) designs a PD ``C = Kp + Kd s``
 (eq. 9) for the hoist of a gantry crane (G eq. 10, load sway F eq. 11) with four

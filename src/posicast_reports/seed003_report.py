@@ -1,4 +1,4 @@
-"""Report section for ``make demo``: seed 003's QFT inner-loop model matching (issue #18).
+"""Report section for ``make reproduce``: seed 003's QFT inner-loop model matching (issue #18).
 
 The printed inner controller checked against the paper's own specifications (eq. 2-3) over the
 27 plants on a dense grid, posicast's automatic design beside it (high-frequency gain, margins,
