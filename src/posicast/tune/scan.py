@@ -288,11 +288,14 @@ def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
     """Which lines ``xs`` the (single) H-infinity constraint forbids over the whole verified window, shown on
     a probe of every k-th grid column and the limit columns.
 
-    Each probe column's forbidden interval is exact and is also forbidden by the whole grid (there it is
-    its own entry or inside a run's hull), so a line the probe's union covers from ``max(-y_valid, y_window[0])``
-    to ``min(y_valid, y_window[1])`` has no admissible interval on the whole grid either (:func:`_blocked_line`
-    gives it the same :class:`LineData`).  Issue #15: with a lumped shaper, most of the sweep's lines at large
-    ``|kx|`` are forbidden throughout, and a probe of ~1000 of the ~85 000 columns shows it for nearly all of them.
+    Each probe column's forbidden interval is exact (the bound fails there at that frequency), so a line
+    the probe's union covers from ``max(-y_valid, y_window[0])`` to ``min(y_valid, y_window[1])`` has no
+    admissible gain at all: :func:`_blocked_line` gives it the :class:`LineData` of a line without admissible
+    intervals.  The scan would give it the same wherever its columns include the probe's (on the whole grid a
+    probe column is its own entry or inside a run's hull); a thinned scan that missed a probe column's
+    violation would be the less exact of the two.  Issue #15: with a lumped shaper, most of the sweep's lines
+    at large ``|kx|`` are forbidden throughout, and a probe of ~1000 of the ~85 000 columns shows it for
+    nearly all of them.
     """
     cols = problem.columns
     blocked = np.zeros(xs.size, dtype=bool)
