@@ -397,9 +397,10 @@ def _curve_hits(cols: Columns, curve: ComplexCurve, lo: np.ndarray, hi: np.ndarr
             sl = slice(k, k + block)
             if not ys[sl].size:
                 continue
-            # only the segments that can cross inside some [lo, hi] (issue #15)
+            # only the segments that can cross inside some [lo, hi] (issue #15; NaN ends are never inside)
+            a, b = float(np.fmin.reduce(lo[sl])), float(np.fmax.reduce(hi[sl]))
             rows, xs, _ = _curve_crossings(curve.polyline("y"), ys[sl], ordered=False,
-                                           across=(float(lo[sl].min()), float(hi[sl].max())))
+                                           across=(a, b) if a == a and b == b else None)
             inside = (xs >= lo[sl][rows]) & (xs <= hi[sl][rows])
             hit[sl] = np.bincount(rows[inside], minlength=ys[sl].size) > 0
         return hit
