@@ -191,3 +191,22 @@ def test_windowed_crossings_give_the_breaks_of_all_crossings(zv_designs, window,
     for x, a, b in zip(xs, near, every):
         for p, q in zip(_line_breaks(problem, x, a), _line_breaks(problem, x, b)):
             assert np.array_equal(p, q)
+
+
+def test_join_paths_keep_their_crossings_beside_a_nan_end(zv_designs):
+    """The joins' horizontal paths test only the curve segments that can cross inside them (issue #15,
+    wave 7); a path with a NaN end crosses nothing, and the other paths of its block keep their crossings."""
+    from posicast.tune.boundaries import _curve_hits
+
+    problem = zv_designs[0].region.problem
+    curve = problem.curve
+    near = np.flatnonzero(np.isfinite(curve.x) & (np.abs(curve.x) < 50) & (np.abs(curve.y) < 50))
+    i = near[near.size // 2]
+    ys = np.linspace(curve.y[i] - 1.0, curve.y[i] + 1.0, 41)
+    x0, x1 = np.full(41, curve.x[i] - 5.0), np.full(41, curve.x[i] + 5.0)
+    alone = np.array([_curve_hits(problem.columns, curve, x0[k:k + 1], x1[k:k + 1], ys[k:k + 1])[0]
+                      for k in range(41)])
+    assert alone.sum() == 41
+    x0[3] = np.nan
+    together = _curve_hits(problem.columns, curve, x0, x1, ys)
+    assert not together[3] and np.array_equal(np.delete(together, 3), np.delete(alone, 3))
