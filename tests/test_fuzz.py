@@ -91,7 +91,6 @@ OWNERS = (
     ("identification/", "lead (identification)"),
     ("firmware/", "lead (firmware)"),
     ("cases.py", "lead (cases)"),
-    ("demo.py", "lead (demo)"),
     ("_validate.py", "shared (_validate)"),
     ("", "core/loops/simulate/tune/io/cli owner"),
 )
