@@ -193,6 +193,12 @@ SEED000_C = ([10.0, 10.0], [0.01, 1.0])
 SEED000_MODE = Mode(10.0, 0.03)
 
 
+def _seed000_loop(architecture: Any, S: Any = None) -> Any:
+    """Seed 000 section V's loop (G eq. 25, F eq. 26, C eq. 27) in ``architecture`` (``control_action`` or
+    ``inverse_shaper``), with the shaper ``S`` (None: none)."""
+    return architecture(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=S)
+
+
 def _spectra_section(report: Report) -> None:
     report.section(
         "Seed 000 section V: spectra of the loops with inverse shapers",
@@ -202,10 +208,10 @@ def _spectra_section(report: Report) -> None:
     )
     zv, dzv = design("zv", SEED000_MODE), design("dzv", SEED000_MODE)
     loops = [
-        ("inverse ZV", inverse_shaper(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=zv)),
-        ("inverse DZV", inverse_shaper(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=dzv)),
-        ("control-action ZV", control_action(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=zv)),
-        ("no shaper", control_action(G=SEED000_G, F=SEED000_F, C=SEED000_C)),
+        ("inverse ZV", _seed000_loop(inverse_shaper, zv)),
+        ("inverse DZV", _seed000_loop(inverse_shaper, dzv)),
+        ("control-action ZV", _seed000_loop(control_action, zv)),
+        ("no shaper", _seed000_loop(control_action)),
     ]
     rows = []
     for name, lp in loops:
@@ -283,10 +289,10 @@ def _simulation_section(report: Report) -> None:
     )
     zv, dzv = design("zv", SEED000_MODE), design("dzv", SEED000_MODE)
     schemes = [
-        ("no shaper", control_action(G=SEED000_G, F=SEED000_F, C=SEED000_C)),
-        ("ZV in the loop (control action)", control_action(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=zv)),
-        ("inverse ZV in the feedback", inverse_shaper(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=zv)),
-        ("inverse DZV in the feedback", inverse_shaper(G=SEED000_G, F=SEED000_F, C=SEED000_C, S=dzv)),
+        ("no shaper", _seed000_loop(control_action)),
+        ("ZV in the loop (control action)", _seed000_loop(control_action, zv)),
+        ("inverse ZV in the feedback", _seed000_loop(inverse_shaper, zv)),
+        ("inverse DZV in the feedback", _seed000_loop(inverse_shaper, dzv)),
     ]
     t = np.arange(0.0, 40.0, 1e-3)
     w = (t >= 5.0).astype(float)
