@@ -210,3 +210,78 @@ def test_join_paths_keep_their_crossings_beside_a_nan_end(zv_designs):
     x0[3] = np.nan
     together = _curve_hits(problem.columns, curve, x0, x1, ys)
     assert not together[3] and np.array_equal(np.delete(together, 3), np.delete(alone, 3))
+
+
+def _overlaps_by_merge(A, B, ma, mb):
+    """The joins' pairs by the merge over every segment of both lines (the code before wave 8)."""
+    from posicast.tune.cells import interval_point
+
+    out, ja, jb = [], 0, 0
+    while ja < A.n_segments and jb < B.n_segments:
+        alo, ahi = A.segment_bounds(ja)
+        blo, bhi = B.segment_bounds(jb)
+        lo, hi = max(alo, blo), min(ahi, bhi)
+        if lo < hi and ma[ja] and mb[jb]:
+            e_lo = max(A.error_at(lo) if not lo > alo else 0.0, B.error_at(lo) if not lo > blo else 0.0)
+            e_hi = max(A.error_at(hi) if not hi < ahi else 0.0, B.error_at(hi) if not hi < bhi else 0.0)
+            if lo + e_lo < hi - e_hi:
+                out.append((ja, jb, interval_point(lo + e_lo, hi - e_hi)))
+        if ahi <= bhi:
+            ja += 1
+        else:
+            jb += 1
+    return out
+
+
+def test_joins_visit_only_wanted_segments_and_find_every_pair():
+    """The joins find the overlapping wanted segments of two lines by binary search (issue #15, wave 8):
+    the same pairs, in the same order, with the same join points as the merge over every segment, on 2000
+    random pairs of lines (shared breaks, uncertain breaks, few or many wanted segments, empty lines)."""
+    from posicast.tune.cells import _overlaps
+    from posicast.tune.scan import LineData
+
+    rng = np.random.default_rng(8)
+
+    def line(breaks):
+        breaks = np.unique(breaks)
+        return LineData(0.0, np.zeros((0, 2)), [], breaks, np.full(breaks.size, "c"), [],
+                        np.zeros(breaks.size + 1, dtype=int), rng.exponential(0.02, breaks.size) * (rng.random(breaks.size) < 0.5))
+
+    pairs = 0
+    for _ in range(2000):
+        a = rng.normal(size=rng.integers(0, 30)).round(1)
+        b = np.concatenate([rng.normal(size=rng.integers(0, 30)).round(1), a[: rng.integers(0, a.size + 1)]])
+        A, B = line(a), line(b)
+        ma = rng.random(A.n_segments) < rng.random()
+        mb = rng.random(B.n_segments) < rng.random()
+        got, ref = _overlaps(A, B, ma, mb), _overlaps_by_merge(A, B, ma, mb)
+        assert got == ref
+        pairs += len(ref)
+    assert pairs > 2000
+
+
+def test_meets_is_the_complement_test():
+    """:func:`meets` (does an admissible gap of the forbidden intervals meet (lo, hi)?), vectorised over
+    lines, against the gaps :func:`complement` lists, on 3000 random sets of intervals (empty entries,
+    infinite ends, touching intervals, windows open below)."""
+    from posicast.tune.hinf import Forbidden, complement, meets
+
+    rng = np.random.default_rng(15)
+    for _ in range(3000):
+        m, k = int(rng.integers(1, 5)), int(rng.integers(1, 12))
+        lo = rng.normal(size=(m, k))
+        hi = lo + rng.exponential(size=(m, k))
+        empty = rng.random((m, k)) < 0.3
+        lo[empty], hi[empty] = np.inf, -np.inf
+        r = rng.random((m, k))
+        lo[r < 0.1] = -np.inf
+        hi[(r > 0.9) & ~empty] = np.inf
+        if k > 1 and rng.random() < 0.3:
+            hi[:, 0] = lo[:, 1]  # touching: no gap between them
+        z = np.zeros((m, k), dtype=int)
+        f = Forbidden(lo, hi, z, z, np.zeros(k, dtype=int), np.zeros(k, dtype=int), np.zeros(k, dtype=int))
+        a, b = np.sort(rng.normal(size=2) * 2)
+        if rng.random() < 0.2:
+            a = -np.inf
+        ref = [bool(np.any(np.maximum(iv[:, 0], a) < np.minimum(iv[:, 1], b))) for iv, _ in complement(f)]
+        assert meets(f, a, b).tolist() == ref

@@ -82,6 +82,12 @@ class Cells:
         self.parent.append(len(self.parent))
         return len(self.parent) - 1
 
+    def new_ids(self, n: int) -> np.ndarray:
+        """``n`` new components at once (the ids :meth:`new` would give, in order)."""
+        start = len(self.parent)
+        self.parent.extend(range(start, start + n))
+        return np.arange(start, start + n)
+
     def find(self, i: int) -> int:
         while self.parent[i] != i:
             self.parent[i] = self.parent[self.parent[i]]
@@ -135,14 +141,31 @@ def interval_point(lo: float, hi: float) -> float:
 
 def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[tuple[int, int, float]]:
     """Pairs of wanted segments ``(ja, jb)`` of two adjacent lines that overlap in ``ky``, with a point
-    inside the certain part of the overlap."""
+    inside the certain part of the overlap (in increasing order of ``ja``, then ``jb``).
+
+    The segments of a line partition the ``ky`` axis (its breaks are strictly increasing), so the
+    segments of ``B`` that overlap segment ``ja`` of ``A`` are a run found by two binary searches:
+    only the wanted segments are visited (issue #15: a delay loop's lines have hundreds of
+    segments, few of them wanted; a merge over all of them was most of the joins' time).
+    """
+    wa = np.flatnonzero(ma[: A.n_segments])
+    if not wa.size or not np.any(mb):
+        return []
+    ea = np.concatenate([[-math.inf], A.breaks, [math.inf]])
+    eb = np.concatenate([[-math.inf], B.breaks, [math.inf]])
+    # B's segments with blo < ahi and bhi > alo: from the one holding alo to the last starting below ahi
+    first = np.searchsorted(eb, ea[wa], side="right") - 1
+    last = np.minimum(np.searchsorted(eb, ea[wa + 1], side="left") - 1, B.n_segments - 1)
+    count = np.maximum(last - first + 1, 0)
+    ja = np.repeat(wa, count)
+    jb = np.repeat(first, count) + (np.arange(ja.size) - np.repeat(np.cumsum(count) - count, count))
+    keep = mb[jb]
     out = []
-    ja = jb = 0
-    while ja < A.n_segments and jb < B.n_segments:
-        alo, ahi = A.segment_bounds(ja)
-        blo, bhi = B.segment_bounds(jb)
+    for i, j in zip(ja[keep].tolist(), jb[keep].tolist()):
+        alo, ahi = A.segment_bounds(i)
+        blo, bhi = B.segment_bounds(j)
         lo, hi = max(alo, blo), min(ahi, bhi)
-        if lo < hi and ma[ja] and mb[jb]:
+        if lo < hi:
             # the overlap's ends are breaks known to within their uncertainty: join only through
             # its certain part (a skipped join costs one more spectrum check, never a wrong label)
             # a line's uncertainty at an end that is not one of its own breaks is 0: an end strictly inside a
@@ -150,11 +173,7 @@ def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[
             e_lo = max(A.error_at(lo) if not lo > alo else 0.0, B.error_at(lo) if not lo > blo else 0.0)
             e_hi = max(A.error_at(hi) if not hi < ahi else 0.0, B.error_at(hi) if not hi < bhi else 0.0)
             if lo + e_lo < hi - e_hi:
-                out.append((ja, jb, interval_point(lo + e_lo, hi - e_hi)))
-        if ahi <= bhi:
-            ja += 1
-        else:
-            jb += 1
+                out.append((i, j, interval_point(lo + e_lo, hi - e_hi)))
     return out
 
 
@@ -167,9 +186,8 @@ def join_lines(problem: Problem, lines: list[LineData], cells: Cells,
     vectorised call.
     """
     for ln in lines:
-        for j in range(ln.n_segments):
-            if ln.comp[j] < 0:
-                ln.comp[j] = cells.new()
+        fresh = np.flatnonzero(ln.comp[: ln.n_segments] < 0)
+        ln.comp[fresh] = cells.new_ids(fresh.size)
     masks = [wanted(i) if wanted is not None else np.ones(ln.n_segments, dtype=bool) for i, ln in enumerate(lines)]
     pairs: list[tuple[int, int, int]] = []
     x0s, x1s, ys = [], [], []

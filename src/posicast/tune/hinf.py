@@ -472,6 +472,25 @@ def complement(f: Forbidden) -> list[tuple[np.ndarray, Ends]]:
     return [_line_complement(f, i, los[i], cm[i], order[i], his[i]) for i in range(f.lo.shape[0])]
 
 
+def meets(f: Forbidden, lo: float, hi: float) -> np.ndarray:
+    """Per line: does an admissible interval of :func:`complement` (``f``'s open gaps) meet ``(lo, hi)``?
+
+    The same gaps as :func:`complement` (sorted lower ends, running maximum of the upper ends), found for
+    every line at once and without naming their ends (issue #15: the probe of
+    :func:`~posicast.tune.scan._forbidden_on_probe` has an entry per column, thousands per line)."""
+    order = np.argsort(f.lo, axis=1, kind="stable")
+    los = np.take_along_axis(f.lo, order, axis=1)
+    his = np.take_along_axis(f.hi, order, axis=1)
+    valid = los < _INF
+    cm = np.maximum.accumulate(np.where(valid, his, -_INF), axis=1)
+    m = los.shape[0]
+    # gap j runs from the running maximum before entry j (-inf for j = 0) to entry j's lower end (inf past the
+    # valid entries): (-inf, lo_0), the gaps between entries, (max hi, inf); the repeats of the last are harmless
+    starts = np.concatenate([np.full((m, 1), -_INF), cm], axis=1)
+    ends = np.concatenate([np.where(valid, los, _INF), np.full((m, 1), _INF)], axis=1)
+    return np.any(np.maximum(starts, lo) < np.minimum(ends, hi), axis=1)
+
+
 def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: np.ndarray,
                      hi_: np.ndarray) -> tuple[np.ndarray, Ends]:
     """The gaps of one line's sorted forbidden intervals (``li`` sorted lower ends, ``ci`` the running

@@ -249,8 +249,7 @@ def _probe_line(problem: Problem, region: Region, i: int, ln: LineData) -> Probe
     x = ln.x
     ref = region.lines[i]
     cells = region.cells
-    for j in range(ln.n_segments):
-        ln.comp[j] = cells.new()
+    ln.comp[:] = cells.new_ids(ln.n_segments)
     cand = _probe_candidates(region, ln)
     if cand:
         ys = np.array([interval_point(a, b) for b, a, _ in cand])

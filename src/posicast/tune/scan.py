@@ -33,7 +33,7 @@ from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundar
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
 from .frequency import Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable
-from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden
+from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, meets
 from .refine import forbidden_window, polish_ends
 
 __all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "intersect", "subtract"]
@@ -298,14 +298,11 @@ def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
     nearly all of them.
     """
     cols = problem.columns
-    blocked = np.zeros(xs.size, dtype=bool)
     if "probe" not in cols.cache:
         cols.cache["probe"] = grid_subset(cols, np.arange(0, cols.n_grid, max(1, cols.n_grid // _PROBE_COLUMNS)))
     y_lo = max(-problem.y_valid, problem.y_window[0])
     y_hi = min(problem.y_valid, problem.y_window[1])
-    for i, (iv, _) in enumerate(complement(forbidden(cols.cache["probe"], xs, [0], hull=False))):
-        blocked[i] = not np.any(np.maximum(iv[:, 0], y_lo) < np.minimum(iv[:, 1], y_hi))
-    return blocked
+    return ~meets(forbidden(cols.cache["probe"], xs, [0], hull=False), y_lo, y_hi)
 
 
 def _blocked_line(problem: Problem, x: Any, cbr: ComplexBreaks) -> LineData:
