@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -78,6 +79,30 @@ class Asymptote:
     @property
     def delays(self) -> np.ndarray:
         return np.concatenate([self.num_delay, self.den_delay])
+
+    @cached_property
+    def peak(self) -> float | None:
+        """``sup |h|`` over the phase parameters when ``|h|`` oscillates (two or more distinct delays in its
+        numerator or denominator: a lumped shaper's ``S``, its inverse), sampled over one period of the
+        commensurate delays (64 periods of the shortest one otherwise); None when ``|h|`` is constant.
+        (Summed delay by delay, not as a matrix product: a BLAS call here would wake its worker threads,
+        which then spin through the scan.)"""
+        if self.m <= -(10**6) or (np.unique(self.num_delay).size < 2 and np.unique(self.den_delay).size < 2):
+            return None
+        delays = self.delays[self.delays > 0]
+        step = _common_step(delays)
+        theta = (np.linspace(0.0, 2.0 * math.pi / step, 4 * _LIMIT_SAMPLES, endpoint=False) if step is not None
+                 else np.linspace(0.0, 64 * 2.0 * math.pi / float(delays.min()), 16 * _LIMIT_SAMPLES))
+
+        def exponential_sum(coef: np.ndarray, delay: np.ndarray) -> np.ndarray:
+            out = np.zeros(theta.shape, dtype=complex)
+            for c, d in zip(coef, delay):
+                out += c * np.exp(-1j * d * theta)
+            return out
+
+        with np.errstate(divide="ignore", invalid="ignore"):
+            h = exponential_sum(self.num_coef, self.num_delay) / exponential_sum(self.den_coef, self.den_delay)
+        return float(np.max(np.abs(h)))
 
     def values(self, theta: np.ndarray) -> np.ndarray:
         """The limit at phase parameters ``theta`` (0 for ``m < 0``; requires ``m <= 0``)."""

@@ -32,7 +32,7 @@ from ..loops import Loop
 from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
-from .frequency import Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable
+from .frequency import Asymptote, Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable
 from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, meets
 from .refine import forbidden_window, polish_ends
 
@@ -103,19 +103,25 @@ def _settled(fd: FrequencyData) -> float:
     return 1e-3
 
 
-def _valid_gain(cols: Columns, term: np.ndarray, m: int) -> float:
+def _valid_gain(cols: Columns, term: np.ndarray, asym: Asymptote) -> float:
     """Largest gain for which the grid covers every frequency where that term of ``L`` matters.
 
     The grid ends at least 30 times above every feature, where a decaying
     term (relative degree ``m < 0``) only decays further; for gains up to this
     bound it is below :func:`_settled` past the grid's end, so ``1 + L`` and
-    the channels are settled there.  A term with a nonzero limit (``m = 0``) is covered by
-    the limit columns at every gain.  :meth:`FrequencyData.refine` extends
+    the channels are settled there.  A term whose high-frequency form
+    ``(j omega)^m h(omega)`` oscillates in magnitude (a lumped shaper in the loop: ``S`` has zeros near
+    the axis every period) is bounded past the end by its envelope ``omega^m sup |h|``, not by its value at
+    the last column, which may sit near one of those zeros.  A term with a nonzero limit (``m = 0``) is
+    covered by the limit columns at every gain.  :meth:`FrequencyData.refine` extends
     the grid when larger gains are scanned.
     """
-    if m >= 0:
+    if asym.m >= 0:
         return _INF
     last = abs(term[cols.n_grid - 1])
+    peak = asym.peak
+    if peak is not None and math.isfinite(peak):  # (an infinite peak: h has poles on the axis, a neutral loop)
+        last = max(last, float(cols.omega[cols.n_grid - 1]) ** asym.m * peak)
     return _INF if not last > 0 else _settled(cols.data) / last
 
 
@@ -138,7 +144,7 @@ def _on_grid(fd: FrequencyData, loop_factory: Callable[[float, float], Loop], re
              infinite: InfiniteBoundary, y_window: tuple[float, float], ledger: StabilityLedger) -> Problem:
     cols = columns_of(fd)
     return Problem(cols, complex_curve(cols), real, infinite, loop_factory, y_window,
-                   _valid_gain(cols, cols.a, fd.asymptote("a").m), _valid_gain(cols, cols.b, fd.asymptote("b").m),
+                   _valid_gain(cols, cols.a, fd.asymptote("a")), _valid_gain(cols, cols.b, fd.asymptote("b")),
                    ledger)
 
 
