@@ -40,7 +40,7 @@ def zv_designs():
 def test_thinned_columns_obey_the_grid_refinement_rule(zv_designs):
     """Every kept step that skips columns is shorter than the spacing the grid refinement accepts for the
     gains asked for (below one unit of it, summed along the step); the first and last grid columns and all limit columns are kept; far fewer columns remain."""
-    cols = zv_designs[0].region.problem.columns
+    cols = zv_designs[0].region.sweep.problem.columns  # the whole sweep's grid, valid for its largest gains
     X, Y = 2.0, 1e6
     sub, sel = thin_columns(cols, X, Y)
     assert sel is not None and sub.n_grid < 0.7 * cols.n_grid
@@ -150,9 +150,9 @@ def test_lines_forbidden_on_the_probe_are_forbidden_on_the_whole_grid(monkeypatc
         blocked_by_probe.append(int(out.sum()))
         return out
 
-    def both(problem, xs):  # pass 1 (the first scan) with and without the probe, on the grid it was made for
+    def both(problem, xs):  # the whole sweep with and without the probe, on the grid it was made for
         with_probe = real_scan(problem, xs)
-        if not compared:
+        if not compared and xs.size == 67:
             monkeypatch.setattr(scan, "_forbidden_on_probe", lambda p, x: np.zeros(x.size, dtype=bool))
             compared.append((with_probe, real_scan(problem, xs)))
             monkeypatch.setattr(scan, "_forbidden_on_probe", probe)
@@ -160,7 +160,8 @@ def test_lines_forbidden_on_the_probe_are_forbidden_on_the_whole_grid(monkeypatc
 
     monkeypatch.setattr(scan, "_forbidden_on_probe", probe)
     monkeypatch.setattr(design_module, "scan_lines", both)
-    posicast.tune_pd(CRANE.G, posicast.design("zvd", CRANE.mode), "control_action", ms=1.2, F=CRANE.F)
+    r = posicast.tune_pd(CRANE.G, posicast.design("zvd", CRANE.mode), "control_action", ms=1.2, F=CRANE.F)
+    assert r.region.sweep is not None  # the design left the outer lines out: the whole sweep is scanned here
     probed, full = compared[0]
     assert blocked_by_probe[0] >= 4 and sum(1 for ln in probed if not ln.hinf.size) >= 40
     assert len(probed) == len(full) == 67
@@ -182,7 +183,7 @@ def test_windowed_crossings_give_the_breaks_of_all_crossings(zv_designs, window,
     from posicast.tune.boundaries import complex_breaks
     from posicast.tune.scan import _line_breaks
 
-    problem = replace(zv_designs[0].region.problem, y_window=window)
+    problem = replace(zv_designs[0].region.sweep.problem, y_window=window)  # the whole sweep's grid
     xs = np.concatenate([np.linspace(-3.0, 3.0, 41), [0.0, 1e-6, 50.0, -400.0]])
     near = complex_breaks(problem.columns, problem.curve, xs, window=window)
     every = complex_breaks(problem.columns, problem.curve, xs)
@@ -210,6 +211,105 @@ def test_join_paths_keep_their_crossings_beside_a_nan_end(zv_designs):
     x0[3] = np.nan
     together = _curve_hits(problem.columns, curve, x0, x1, ys)
     assert not together[3] and np.array_equal(np.delete(together, 3), np.delete(alone, 3))
+
+
+# ---------------------------------------------------------------------------- issue #15, wave 8: the inner sweep
+@pytest.fixture(scope="module")
+def staged_and_whole():
+    """The crane's lumped designs with the inner sweep, and with every sweep line scanned (INNER_DECADES so
+    large that every line is inner: the design as before wave 8)."""
+    cases = [("control_action", 1.2, "zv"), ("control_action", 1.2, "zvd"), ("control_action", 1.2, "ei"),
+             ("inverse_shaper", 2.0, "zv")]
+    out = {}
+    for arch, ms, kind in cases:
+        S = posicast.design(kind, CRANE.mode)
+        staged = posicast.tune_pd(CRANE.G, S, arch, ms=ms, F=CRANE.F)
+        saved = design_module.INNER_DECADES
+        design_module.INNER_DECADES = 10
+        try:
+            whole = posicast.tune_pd(CRANE.G, S, arch, ms=ms, F=CRANE.F)
+        finally:
+            design_module.INNER_DECADES = saved
+        out[(arch, kind)] = staged, whole
+    return out
+
+
+def test_inner_sweep_gives_the_whole_sweep_optimum(staged_and_whole):
+    """With a lumped shaper in the control action the design scans the 51 sweep lines within 10^2 natural
+    scales of Kd; the 16 outer ones are shown to hold no admissible Kp >= 0 and left out. The optimum is the
+    one found with all 67 lines scanned, to the last digit, and the verification is the same."""
+    for (arch, kind), (staged, whole) in staged_and_whole.items():
+        assert (staged.kp, staged.kd, staged.ms, staged.stable) == (whole.kp, whole.kd, whole.ms, whole.stable)
+        assert whole.region.skipped is None
+        if arch == "control_action":
+            sk = staged.region.skipped
+            assert sk is not None and sk.x.size == 16 and sk.floor == 0.0 and sk.n_sweep == 67
+            assert staged.region.sweep_lines == 67 and f"the design scanned 51 of them" in staged.summary()
+
+
+def test_skipped_lines_hold_no_admissible_gain_above_the_floor(staged_and_whole):
+    """What the probe showed, checked on the whole sweep's exact scan (scanned when asked for): none of the
+    lines left out has an H-infinity-admissible Kp >= 0. For the inverse ZV loop the probe cannot show it
+    (lines at Kd 218-2178 are admissible up to Kp ~ 8e4, in unstable cells): every line is scanned."""
+    for (arch, kind), (staged, whole) in staged_and_whole.items():
+        sweep = staged.region.sweep
+        assert sweep.x.size == 67
+        if arch == "control_action":
+            left_out = np.isin(sweep.x, staged.region.skipped.x)
+            assert left_out.sum() == 16
+            for i in np.flatnonzero(left_out):
+                iv = sweep.hinf_intervals(int(i))
+                assert not np.any(iv[:, 1] > 0.0)
+        else:
+            assert staged.region.skipped is None
+            sx = np.abs(sweep.x[sweep.x != 0]).min() * 1e4  # the natural scale: the sweep starts at 1e-4 of it
+            outer = np.abs(sweep.x) > 100 * sx * (1 + 1e-9)
+            assert any(np.any(sweep.hinf_intervals(int(i))[:, 1] > 1e4) for i in np.flatnonzero(outer))
+
+
+def test_inner_sweep_falls_back_when_the_outer_lines_may_matter(monkeypatch):
+    """An inner sweep too narrow for the optimum (here |Kd| <= 10^-3 natural scales: the outer lines hold
+    admissible Kp > 0) is not trusted: every sweep line is scanned, and the optimum is the design's."""
+    S = posicast.design("zv", CRANE.mode)
+    reference = posicast.tune_pd(CRANE.G, S, "control_action", ms=1.2, F=CRANE.F)
+    monkeypatch.setattr(design_module, "INNER_DECADES", -3)
+    narrow = posicast.tune_pd(CRANE.G, S, "control_action", ms=1.2, F=CRANE.F)
+    assert narrow.region.skipped is None
+    assert narrow.kp == pytest.approx(reference.kp, rel=1e-9) and narrow.kd == pytest.approx(reference.kd, rel=1e-9)
+
+
+def test_valid_gains_bound_the_terms_past_the_grid_end(staged_and_whole):
+    """x_valid and y_valid promise |kx a| and |ky b| below the settled level past the grid's end. With a
+    lumped shaper |a| and |b| oscillate there (S has zeros near the axis every period), so the bound comes
+    from the envelope omega^m sup|h|, not from the last column: checked on 400 001 exact frequencies over
+    [end, 3 end] (the value at the last column alone overstated x_valid up to 74 times for these loops)."""
+    from posicast.tune.scan import _settled
+
+    for staged, _ in staged_and_whole.values():
+        p = staged.region.problem
+        cols = p.columns
+        end = cols.omega[cols.n_grid - 1]
+        v = cols.data.values(np.linspace(end, 3 * end, 400_001))
+        settled = _settled(cols.data)
+        assert p.x_valid * np.abs(v["a"]).max() <= settled * (1 + 1e-6)
+        assert p.y_valid * np.abs(v["b"]).max() <= settled * (1 + 1e-6)
+
+
+def test_inner_decides_only_when_the_best_component_ends_inside(staged_and_whole):
+    """The inner lines decide pass 1 when their best piece reaches above Kp = 0 and its component ends inside
+    them: on the whole sweep it does; cut through the component, or with no piece, it does not."""
+    from posicast.tune.cells import interval_point
+    from posicast.tune.design import _inner_decides
+    from posicast.tune.regions import best_piece, component_lines, make_region
+
+    sweep = staged_and_whole[("control_action", "zv")][0].region.sweep
+    best = best_piece(sweep)
+    assert best is not None and best[2] > 0 and _inner_decides(sweep, best)
+    comp = component_lines(sweep, best[0], interval_point(best[1], best[2]))
+    assert 0 < comp.min() and comp.max() < sweep.x.size - 1
+    cut = make_region(sweep.problem, sweep.family, list(sweep.lines[: comp.max()]), sweep.cells, sweep.y_range)
+    assert not _inner_decides(cut, best_piece(cut))
+    assert not _inner_decides(sweep, None) and not _inner_decides(sweep, (best[0], best[1] - 1e9, -1.0))
 
 
 def _overlaps_by_merge(A, B, ma, mb):
@@ -285,28 +385,3 @@ def test_meets_is_the_complement_test():
             a = -np.inf
         ref = [bool(np.any(np.maximum(iv[:, 0], a) < np.minimum(iv[:, 1], b))) for iv, _ in complement(f)]
         assert meets(f, a, b).tolist() == ref
-
-
-@pytest.fixture(scope="module")
-def lumped_designs():
-    cases = [("control_action", 1.2, "zv"), ("control_action", 1.2, "zvd"), ("control_action", 1.2, "ei"),
-             ("inverse_shaper", 2.0, "zv")]
-    return [posicast.tune_pd(CRANE.G, posicast.design(kind, CRANE.mode), arch, ms=ms, F=CRANE.F)
-            for arch, ms, kind in cases]
-
-
-def test_valid_gains_bound_the_terms_past_the_grid_end(lumped_designs):
-    """x_valid and y_valid promise |kx a| and |ky b| below the settled level past the grid's end. With a
-    lumped shaper |a| and |b| oscillate there (S has zeros near the axis every period), so the bound comes
-    from the envelope omega^m sup|h|, not from the last column: checked on 400 001 exact frequencies over
-    [end, 3 end] (the value at the last column alone overstated x_valid up to 74 times for these loops)."""
-    from posicast.tune.scan import _settled
-
-    for r in lumped_designs:
-        p = r.region.problem
-        cols = p.columns
-        end = cols.omega[cols.n_grid - 1]
-        v = cols.data.values(np.linspace(end, 3 * end, 400_001))
-        settled = _settled(cols.data)
-        assert p.x_valid * np.abs(v["a"]).max() <= settled * (1 + 1e-6)
-        assert p.y_valid * np.abs(v["b"]).max() <= settled * (1 + 1e-6)

@@ -35,18 +35,19 @@ import numpy as np
 
 from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
-from ..core.transfer import TransferFunction
+from ..core.transfer import TransferFunction, as_transfer
 from ..loops import Loop, feature_frequencies
 from .cells import Cells, interval_point, join_lines
 from .constraints import Constraint
 from .family import ControllerFamily, pd_family, pi_family, pid_family
-from .frequency import FrequencyData, _poly_tf
+from .frequency import Asymptote, FrequencyData, _poly_tf
 from .inputs import (architecture_argument, check_architecture, check_blocks, check_range, constraint_tuple,
                      constraints_with_ms)
 from .optimum import SWEEP_DECADES, empty_result, optimum, weakly_neutral
-from .regions import Region, best_piece, component_extent, component_lines, make_region, pieces, segment_stable
+from .regions import (Region, SkippedLines, best_piece, component_extent, component_lines, make_region, pieces,
+                      segment_stable)
 from .result import TuningResult
-from .scan import LineData, Problem, make_problem, regrid, scan_lines
+from .scan import LineData, Problem, forbidden_above, make_problem, regrid, scan_lines
 
 __all__ = ["TuningResult", "tune", "tune_pd", "tune_pi", "tune_pid"]
 
@@ -124,17 +125,85 @@ def _hinf_wanted(lines: list[LineData]) -> Callable[[int], np.ndarray]:
 
 def _build_region(problem: Problem, family: ControllerFamily, xs: np.ndarray,
                   y_range: tuple[float, float], previous: Region | None = None,
-                  search_range: tuple[float, float] | None = None) -> Region:
+                  search_range: tuple[float, float] | None = None,
+                  whole_sweep: Callable[[], Region] | None = None, skipped: SkippedLines | None = None) -> Region:
     """Scan ``xs``; the cells of ``previous`` whose checked point connects to a new segment
     without crossing a boundary pass their stability label on (no second spectrum check).
-    With ``search_range`` wider than ``y_range`` the region is windowed and keeps ``previous`` as its sweep."""
+    With ``search_range`` wider than ``y_range`` the region is windowed and keeps ``previous`` as its sweep
+    (``whole_sweep``: what scans the whole sweep instead, when pass 1 left lines out: ``skipped``)."""
     lines = scan_lines(problem, xs)
     cells = Cells(problem.loop_factory, problem.ledger, (family.x, family.y))
     join_lines(problem, lines, cells, _hinf_wanted(lines))
     if previous is not None and lines:
         _inherit_labels(problem, previous.cells, lines, cells, xs)
     windowed = search_range is not None and tuple(search_range) != tuple(y_range)
-    return make_region(problem, family, lines, cells, y_range, search_range, previous if windowed else None)
+    if not windowed:
+        return make_region(problem, family, lines, cells, y_range, search_range)
+    return make_region(problem, family, lines, cells, y_range, search_range,
+                       previous if whole_sweep is None else whole_sweep, skipped)
+
+
+# ---------------------------------------------------------------------- pass 1
+#: with a lumped shaper in the loop, pass 1 first scans the lines within 10^INNER_DECADES natural scales
+INNER_DECADES = 2
+
+
+def _inner_lines(tuner: _Tuner, xs: np.ndarray, sx: float) -> np.ndarray | None:
+    """Mask of the sweep's inner lines (``|kx| <= 10^INNER_DECADES sx``) when a lumped shaper is in the loop,
+    else None (one pass over every line).
+
+    A lumped shaper (a sum of delayed impulses) keeps ``|S(j omega)|`` oscillating without decay, so the grid
+    for the sweep's largest gains is uniform up to the delay ceiling (issue #15: 47 000-92 000 columns on the
+    seed 001 crane, against 12 000-25 000 for the inner lines)."""
+    if tuner.S is None or tuner.architecture == "feedforward":
+        return None
+    asym = Asymptote.of(as_transfer(tuner.S, "S"))
+    if asym.m != 0 or asym.peak is None:
+        return None
+    inner = np.abs(xs) <= 10.0**INNER_DECADES * sx * (1.0 + 1e-9)
+    return inner if not inner.all() else None
+
+
+def _sweep_problem(tuner: _Tuner, family: ControllerFamily, cons: tuple[Constraint, ...], xs: np.ndarray,
+                   sx: float, sy: float, yr: tuple[float, float]) -> Problem:
+    """The frequency data and scan problem of pass 1 on the lines ``xs``: a grid valid for the largest of them
+    (and, at low frequency, for the smallest), stopped at the delay ceiling."""
+    fd = FrequencyData(tuner.loop0, family, cons, scale=(float(np.max(np.abs(xs))), 4 * sy), limit_for_delays=True)
+    nonzero = np.abs(xs[xs != 0])
+    fd.refine(fd._scale, small=(float(nonzero.min()) if nonzero.size else sx, sy * 10.0 ** -SWEEP_DECADES),
+              ceiling=fd.delay_ceiling)
+    return make_problem(fd, tuner.loop, tuner.char_terms, tuner.m0, yr)
+
+
+def _sweep_region(problem: Problem, family: ControllerFamily, xs: np.ndarray,
+                  yr: tuple[float, float]) -> tuple[Region, np.ndarray]:
+    """Pass 1's region on the lines ``xs`` the grid verifies, and those lines.
+
+    A delay loop's pass-1 grid stops at ``fd.delay_ceiling`` (else ``e^{-s} / (s + 1)`` would stretch it to
+    1e9 rad/s for hopeless huge gains): the sweep keeps the lines the grid verifies."""
+    xs = xs[np.abs(xs) <= problem.x_valid]
+    return _build_region(problem, family, xs, yr), xs
+
+
+def _inner_decides(region: Region, best: tuple[int, float, float] | None) -> bool:
+    """Is the inner lines' pass 1 the whole sweep's, given that the outer lines hold no admissible ``ky >= 0``?
+
+    Yes when its best piece reaches above 0 (no outer piece can top it) and that piece's component ends
+    inside the inner lines (joins run between neighbouring lines only: it cannot reach the outer ones)."""
+    if best is None or not best[2] > 0.0:
+        return False
+    comp = component_lines(region, best[0], interval_point(best[1], best[2]))
+    return bool(comp.min() > 0 and comp.max() < region.x.size - 1)
+
+
+def _whole_sweep(tuner: _Tuner, family: ControllerFamily, cons: tuple[Constraint, ...], xs: np.ndarray, sx: float,
+                 sy: float, yr: tuple[float, float]) -> Callable[[], Region]:
+    """What scans pass 1 on every sweep line (as a design without the inner pass does), when first asked for."""
+
+    def scan() -> Region:
+        return _sweep_region(_sweep_problem(tuner, family, cons, xs, sx, sy, yr), family, xs, yr)[0]
+
+    return scan
 
 
 def _snap_up(value: float) -> float:
@@ -256,25 +325,34 @@ def tune(
         xs1 = sweep
     else:
         xs1 = np.union1d(np.linspace(xr[0], xr[1], _PASS1_LINES), sweep[(sweep > xr[0]) & (sweep < xr[1])])
-    fd = FrequencyData(tuner.loop0, family, cons, scale=(float(np.max(np.abs(xs1))), 4 * sy), limit_for_delays=True)
-    nonzero = np.abs(xs1[xs1 != 0])
-    fd.refine(fd._scale, small=(float(nonzero.min()) if nonzero.size else sx, sy * 10.0 ** -SWEEP_DECADES),
-              ceiling=fd.delay_ceiling)
-    problem = make_problem(fd, tuner.loop, tuner.char_terms, tuner.m0, yr)
+    # with a lumped shaper in the loop, the inner lines first (_inner_lines): the outer ones need a grid up to
+    # the delay ceiling, and are left out when shown to hold nothing above the inner lines' best point
+    inner = _inner_lines(tuner, xs1, sx) if auto else None
+    problem = _sweep_problem(tuner, family, cons, xs1 if inner is None else xs1[inner], sx, sy, yr)
     weak = weakly_neutral(problem)
     if weak is not None:  # no gain of this family can help: say so at once, with the reason
         region = make_region(problem, family, [], Cells(tuner.loop, problem.ledger, (family.x, family.y)), yr)
         timings["total"] = time.perf_counter() - t_start
         return _with_timings(empty_result(tuner, region, weak), timings)
-    # a delay loop's pass-1 grid stops at fd.delay_ceiling (else e^{-s} / (s + 1) would stretch it to
-    # 1e9 rad/s for hopeless huge gains): the sweep keeps the lines the grid verifies
-    xs1 = xs1[np.abs(xs1) <= problem.x_valid]
+    skipped = None
+    if inner is not None:
+        shown, n_probe = forbidden_above(problem, xs1[~inner], 0.0, float(problem.fd.delay_ceiling))
+        if shown.all():
+            skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size))
+        else:  # the grid extended to the whole sweep's gains
+            problem.fd.refine((float(np.max(np.abs(xs1))), 4 * sy), ceiling=problem.fd.delay_ceiling)
+            problem = regrid(problem)
     timings["frequency grid"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    region = _build_region(problem, family, xs1, yr)
+    region, xs_scanned = _sweep_region(problem, family, xs1 if skipped is None else xs1[inner], yr)
     best = best_piece(region)
+    if skipped is not None and not _inner_decides(region, best):  # the whole sweep, as without the inner pass
+        skipped = None
+        problem = replace(_sweep_problem(tuner, family, cons, xs1, sx, sy, yr), ledger=problem.ledger)
+        region, xs_scanned = _sweep_region(problem, family, xs1, yr)
+        best = best_piece(region)
     timings["pass 1"] = time.perf_counter() - t0
-    per_line = timings["pass 1"] / max(xs1.size, 1)
+    per_line = timings["pass 1"] / max(xs_scanned.size, 1)
     v.refuse_large(per_line * n_lines, MAX_SECONDS, f"scanning n_lines = {n_lines} lines (measured {per_line * 1e3:.3g} ms "
                    f"a line for this loop)", f"use n_lines <= {max(11, int(MAX_SECONDS / per_line))}", "s")
 
@@ -289,14 +367,15 @@ def tune(
         if xr is not None:
             a, b = max(a, xr[0]), min(b, xr[1])
         ytop = abs(best[2]) if math.isfinite(best[2]) else sy
-        fd.refine((max(abs(a), abs(b)), max(ytop, sy)))
+        problem.fd.refine((max(abs(a), abs(b)), max(ytop, sy)))
         problem = regrid(problem)
         sweep, xs2 = region, np.linspace(a, b, n_lines)
+        whole = None if skipped is None else _whole_sweep(tuner, family, cons, xs1, sx, sy, yr)
         # the exact scan where the answer is: a window around the best component, widened while the
         # admissible set reaches its top (or the component its bottom); beyond it, the sweep's lines
         for win in _windows(problem, sweep, comp, best, yr):
             p2 = problem if win == yr else replace(problem, y_window=win)
-            region = _build_region(p2, family, xs2, win, sweep, search_range=yr)
+            region = _build_region(p2, family, xs2, win, sweep, search_range=yr, whole_sweep=whole, skipped=skipped)
             if win == yr or not _reaches_edge(region, yr):
                 problem = p2
                 break

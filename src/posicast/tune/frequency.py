@@ -36,7 +36,7 @@ from .constraints import Constraint
 from .family import ControllerFamily
 
 __all__ = ["FrequencyData", "Asymptote", "Columns", "ConstraintColumns", "columns_of", "grid_subset", "thin_columns",
-           "thinnable"]
+           "thinnable", "with_frequencies"]
 
 _MAX_POINTS = 400_000  # frequency grid size cap
 _REFINE_ROUNDS = 24
@@ -700,6 +700,22 @@ def grid_subset(cols: Columns, sel: np.ndarray) -> Columns:
     full = np.concatenate([sel, np.arange(cols.n_grid, cols.u.size)])
     cons = tuple(ConstraintColumns(c.nu[full], c.na[full], c.nb[full], c.w2[full]) for c in cols.constraints)
     return Columns(cols.data, cols.omega[sel], sel.size, cols.u[full], cols.a[full], cols.b[full], cons)
+
+
+def with_frequencies(cols: Columns, w: np.ndarray) -> Columns:
+    """``cols`` with exact columns at the frequencies ``w`` (> every grid frequency, increasing) added after
+    its grid columns (:meth:`FrequencyData.values`; for probes beyond the grid's end)."""
+    v = cols.data.values(np.asarray(w, dtype=float))
+    n = cols.n_grid
+
+    def join(old: np.ndarray, new: np.ndarray) -> np.ndarray:
+        return np.concatenate([old[:n], new, old[n:]])
+
+    cons = tuple(ConstraintColumns(join(c.nu, v[f"nu{i}"]), join(c.na, v[f"na{i}"]), join(c.nb, v[f"nb{i}"]),
+                                   join(c.w2, np.abs(v[f"W{i}"]) ** 2 / con.gamma**2))
+                 for i, (c, con) in enumerate(zip(cols.constraints, cols.data.constraints)))
+    return Columns(cols.data, np.concatenate([cols.omega[:n], w]), n + w.size, join(cols.u, v["u"]),
+                   join(cols.a, v["a"]), join(cols.b, v["b"]), cons)
 
 
 def _refuse_improper_loop(asym: dict[str, Asymptote], family: ControllerFamily, architecture: str) -> None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["Region", "LineData", "make_region", "admissible_intervals", "pieces", "best_piece", "component_lines",
+__all__ = ["Region", "LineData", "SkippedLines", "make_region", "admissible_intervals", "pieces", "best_piece", "component_lines",
            "component_extent", "hinf_intervals", "stable_intervals", "default_window", "extent", "area", "contains",
            "mask", "signed_distance"]
 
@@ -71,7 +71,11 @@ class Region:
     sweep : Region or None
         The first pass: the whole :attr:`search_range` on the logarithmic sweep
         lines, exact on those lines (coarser in ``kx`` than this region); None
-        when this region is that pass, or is not windowed.
+        when this region is that pass, or is not windowed.  With a lumped shaper
+        in the loop the design may have needed only the sweep's inner lines
+        (:attr:`skipped`); the whole sweep is then scanned when first asked for.
+    skipped : SkippedLines or None
+        The sweep lines the design left out, and why (None: it scanned them all).
     """
 
     family: ControllerFamily
@@ -85,8 +89,28 @@ class Region:
     cells: Cells = field(repr=False)
     problem: Problem = field(repr=False)
     search_range: tuple[float, float] | None = None
-    sweep: Region | None = field(default=None, repr=False)
+    _sweep: Region | Callable[[], Region] | None = field(default=None, repr=False)
+    skipped: SkippedLines | None = None
     _admissible: dict[int, np.ndarray] = field(default_factory=dict, init=False, repr=False)
+
+    @property
+    def sweep(self) -> Region | None:
+        """The first pass over the whole search range (see the class attributes); scanned now if the design
+        left its outer lines out (:attr:`skipped`)."""
+        s = self._sweep
+        if s is not None and not isinstance(s, Region):
+            s = s()
+            object.__setattr__(self, "_sweep", s)
+        return s
+
+    @property
+    def sweep_lines(self) -> int:
+        """How many lines the first pass has (without scanning a sweep not yet scanned; 0: none)."""
+        if self._sweep is None:
+            return 0
+        if isinstance(self._sweep, Region):
+            return int(self._sweep.x.size)
+        return int(self.skipped.n_sweep) if self.skipped is not None else int(self.sweep.x.size)
 
     # ------------------------------------------------------------------ short forms of the queries
     @property
@@ -158,14 +182,41 @@ class Region:
         return f"Region({self.x.size} lines, spacing {self.spacing:.3g}{win}; admissible: {where})"
 
 
+@dataclass(frozen=True)
+class SkippedLines:
+    """Sweep lines a design left out: none of them has an H-infinity-admissible ``ky`` at or above ``floor``
+    in the search range, shown by exact forbidden intervals at ``probe`` frequencies (and the limit
+    columns), and the best component found without them ends inside the lines scanned, so the optimum is
+    the same with or without them (:func:`posicast.tune.scan.forbidden_above`).
+
+    Attributes
+    ----------
+    x : ndarray
+        The lines left out.
+    floor : float
+        The ``ky`` from which up each of them is shown forbidden.
+    probe : int
+        How many frequencies showed it.
+    n_sweep : int
+        Lines of the whole sweep.
+    """
+
+    x: np.ndarray
+    floor: float
+    probe: int
+    n_sweep: int
+
+
 def make_region(problem: Problem, family: ControllerFamily, lines: list[LineData], cells: Cells,
                 y_range: tuple[float, float], search_range: tuple[float, float] | None = None,
-                sweep: Region | None = None) -> Region:
-    """The region of a scan (``search_range``, ``sweep``: see :class:`Region`)."""
+                sweep: Region | Callable[[], Region] | None = None,
+                skipped: SkippedLines | None = None) -> Region:
+    """The region of a scan (``search_range``, ``sweep``, ``skipped``: see :class:`Region`; ``sweep`` may be a
+    callable that scans it when first asked for)."""
     x = np.array([ln.x for ln in lines])
     spacing = float(np.median(np.diff(x))) if x.size > 1 else 0.0
     return Region(family, family.x, family.y, x, spacing, y_range, problem.fd.constraints, tuple(lines), cells,
-                  problem, search_range, sweep)
+                  problem, search_range, sweep, skipped)
 
 
 # ---------------------------------------------------------------------- argument checks

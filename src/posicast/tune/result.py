@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, Mapping
 
+import numpy as np
+
 from ..core.transfer import TransferFunction
 from ..loops import Loop
 from ..spectra.rootfinder import RootFindingError
@@ -171,8 +173,13 @@ class TuningResult:
         if reg.windowed and reg.search_range is not None:
             y, (lo, hi), (slo, shi) = reg.y_name, reg.y_range, reg.search_range
             out += (f"\n  region: {reg.x.size} lines exact for {y} in [{lo:.4g}, {hi:.4g}] (the window around the "
-                    f"optimum's component); {y} in [{slo:.4g}, {shi:.4g}] on the {reg.sweep.x.size if reg.sweep else 0} "
+                    f"optimum's component); {y} in [{slo:.4g}, {shi:.4g}] on the {reg.sweep_lines} "
                     f"sweep lines only (region.sweep)")
+        if reg.skipped is not None:
+            sk = reg.skipped
+            out += (f"\n  the design scanned {sk.n_sweep - sk.x.size} of them: on the {sk.x.size} with "
+                    f"|{reg.x_name}| >= {float(np.min(np.abs(sk.x))):.4g} no {reg.y_name} >= {sk.floor:.4g} meets "
+                    f"the constraints (shown exactly on {sk.probe} frequency columns)")
         return out
 
     def __repr__(self) -> str:

@@ -32,11 +32,12 @@ from ..loops import Loop
 from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundary, RealBoundary, complex_breaks,
                          complex_curve, crossing_frequency, horizontal_crossing, infinite_boundary, real_boundary)
 from .cells import StabilityLedger
-from .frequency import Asymptote, Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable
+from .frequency import (Asymptote, Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable,
+                        with_frequencies)
 from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, meets
 from .refine import forbidden_window, polish_ends
 
-__all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "intersect", "subtract"]
+__all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "forbidden_above", "intersect", "subtract"]
 
 _INF = math.inf
 
@@ -309,6 +310,31 @@ def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
     y_lo = max(-problem.y_valid, problem.y_window[0])
     y_hi = min(problem.y_valid, problem.y_window[1])
     return ~meets(forbidden(cols.cache["probe"], xs, [0], hull=False), y_lo, y_hi)
+
+
+def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) -> tuple[np.ndarray, int]:
+    """Which lines ``xs`` have no H-infinity-admissible ``ky`` in ``[floor, y_window[1]]``, shown on a probe;
+    and how many frequencies the probe has.
+
+    The probe: about :data:`_PROBE_COLUMNS` evenly spaced grid columns, as many frequencies evenly spaced
+    from the grid's end up to ``top`` [rad/s] (exact values), and the limit columns.  Each column's
+    forbidden intervals are exact (every constraint fails there, at that frequency), whatever the gains:
+    the grid need not be valid for ``xs``.  So a line shown here has no admissible gain at or above
+    ``floor``; a line not shown may still have none (the probe is a sample).  Issue #15: with a lumped
+    shaper in the loop, the sweep's lines at large ``|kx|`` need a grid up to the delay ceiling; where they
+    are shown to hold nothing above the best point of the inner lines, the design does without them.
+    """
+    cols = problem.columns
+    key = ("probe above", float(top))
+    if key not in cols.cache:
+        probe = grid_subset(cols, np.arange(0, cols.n_grid, max(1, cols.n_grid // _PROBE_COLUMNS)))
+        end = float(cols.omega[cols.n_grid - 1])
+        if top > end:
+            probe = with_frequencies(probe, np.linspace(end, top, _PROBE_COLUMNS + 1)[1:])
+        cols.cache[key] = probe
+    probe = cols.cache[key]
+    shown = ~meets(forbidden(probe, xs, range(cols.n_constraints), hull=False), floor, problem.y_window[1])
+    return shown, int(probe.u.size)
 
 
 def _blocked_line(problem: Problem, x: Any, cbr: ComplexBreaks) -> LineData:
