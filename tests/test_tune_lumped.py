@@ -334,10 +334,11 @@ def _overlaps_by_merge(A, B, ma, mb):
 
 
 def test_joins_visit_only_wanted_segments_and_find_every_pair():
-    """The joins find the overlapping wanted segments of two lines by binary search (issue #15, wave 8):
+    """The joins find the overlapping wanted segments of two long lines by binary search (issue #15, wave 8):
     the same pairs, in the same order, with the same join points as the merge over every segment, on 2000
-    random pairs of lines (shared breaks, uncertain breaks, few or many wanted segments, empty lines)."""
-    from posicast.tune.cells import _overlaps
+    random pairs of lines (shared breaks, uncertain breaks, few or many wanted segments, empty lines, short
+    lines that are merged and long ones that are searched)."""
+    from posicast.tune.cells import _overlaps, _overlaps_by_search
     from posicast.tune.scan import LineData
 
     rng = np.random.default_rng(8)
@@ -349,13 +350,14 @@ def test_joins_visit_only_wanted_segments_and_find_every_pair():
 
     pairs = 0
     for _ in range(2000):
-        a = rng.normal(size=rng.integers(0, 30)).round(1)
-        b = np.concatenate([rng.normal(size=rng.integers(0, 30)).round(1), a[: rng.integers(0, a.size + 1)]])
+        size = 30 if rng.random() < 0.5 else 120
+        a = rng.normal(size=rng.integers(0, size)).round(2)
+        b = np.concatenate([rng.normal(size=rng.integers(0, size)).round(2), a[: rng.integers(0, a.size + 1)]])
         A, B = line(a), line(b)
         ma = rng.random(A.n_segments) < rng.random()
         mb = rng.random(B.n_segments) < rng.random()
-        got, ref = _overlaps(A, B, ma, mb), _overlaps_by_merge(A, B, ma, mb)
-        assert got == ref
+        ref = _overlaps_by_merge(A, B, ma, mb)
+        assert _overlaps(A, B, ma, mb) == ref and _overlaps_by_search(A, B, ma, mb) == ref
         pairs += len(ref)
     assert pairs > 2000
 

@@ -139,15 +139,53 @@ def interval_point(lo: float, hi: float) -> float:
     return 0.0
 
 
+#: lines with more segments than this, together, are joined by binary search (fewer: by a merge, cheaper there)
+_MERGE_BELOW = 64
+
+
 def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[tuple[int, int, float]]:
     """Pairs of wanted segments ``(ja, jb)`` of two adjacent lines that overlap in ``ky``, with a point
     inside the certain part of the overlap (in increasing order of ``ja``, then ``jb``).
 
-    The segments of a line partition the ``ky`` axis (its breaks are strictly increasing), so the
-    segments of ``B`` that overlap segment ``ja`` of ``A`` are a run found by two binary searches:
-    only the wanted segments are visited (issue #15: a delay loop's lines have hundreds of
-    segments, few of them wanted; a merge over all of them was most of the joins' time).
+    Short lines are merged segment by segment; long ones (a delay loop's lines have hundreds of segments,
+    few of them wanted) go to :func:`_overlaps_by_search`, which visits only the wanted segments (issue
+    #15: a merge over all of them was most of the joins' time there).  The same pairs either way.
     """
+    if A.n_segments + B.n_segments > _MERGE_BELOW:
+        return _overlaps_by_search(A, B, ma, mb)
+    out = []
+    ja = jb = 0
+    while ja < A.n_segments and jb < B.n_segments:
+        alo, ahi = A.segment_bounds(ja)
+        blo, bhi = B.segment_bounds(jb)
+        if ma[ja] and mb[jb]:
+            _join_point(A, B, ja, jb, alo, ahi, blo, bhi, out)
+        if ahi <= bhi:
+            ja += 1
+        else:
+            jb += 1
+    return out
+
+
+def _join_point(A: LineData, B: LineData, ja: int, jb: int, alo: float, ahi: float, blo: float, bhi: float,
+                out: list[tuple[int, int, float]]) -> None:
+    """Append ``(ja, jb, point)`` if the two segments overlap in more than their ends' uncertainty."""
+    lo, hi = max(alo, blo), min(ahi, bhi)
+    if lo < hi:
+        # the overlap's ends are breaks known to within their uncertainty: join only through
+        # its certain part (a skipped join costs one more spectrum check, never a wrong label)
+        # a line's uncertainty at an end that is not one of its own breaks is 0: an end strictly inside a
+        # segment is none of the (sorted) breaks, so only the line whose break it is gets looked up
+        e_lo = max(A.error_at(lo) if not lo > alo else 0.0, B.error_at(lo) if not lo > blo else 0.0)
+        e_hi = max(A.error_at(hi) if not hi < ahi else 0.0, B.error_at(hi) if not hi < bhi else 0.0)
+        if lo + e_lo < hi - e_hi:
+            out.append((ja, jb, interval_point(lo + e_lo, hi - e_hi)))
+
+
+def _overlaps_by_search(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[tuple[int, int, float]]:
+    """:func:`_overlaps` visiting only the wanted segments: the segments of a line partition the ``ky`` axis
+    (its breaks are strictly increasing), so those of ``B`` that overlap segment ``ja`` of ``A`` are a run
+    found by two binary searches."""
     wa = np.flatnonzero(ma[: A.n_segments])
     if not wa.size or not np.any(mb):
         return []
@@ -160,20 +198,11 @@ def _overlaps(A: LineData, B: LineData, ma: np.ndarray, mb: np.ndarray) -> list[
     ja = np.repeat(wa, count)
     jb = np.repeat(first, count) + (np.arange(ja.size) - np.repeat(np.cumsum(count) - count, count))
     keep = mb[jb]
-    out = []
+    out: list[tuple[int, int, float]] = []
     for i, j in zip(ja[keep].tolist(), jb[keep].tolist()):
         alo, ahi = A.segment_bounds(i)
         blo, bhi = B.segment_bounds(j)
-        lo, hi = max(alo, blo), min(ahi, bhi)
-        if lo < hi:
-            # the overlap's ends are breaks known to within their uncertainty: join only through
-            # its certain part (a skipped join costs one more spectrum check, never a wrong label)
-            # a line's uncertainty at an end that is not one of its own breaks is 0: an end strictly inside a
-            # segment is none of the (sorted) breaks, so only the line whose break it is gets looked up
-            e_lo = max(A.error_at(lo) if not lo > alo else 0.0, B.error_at(lo) if not lo > blo else 0.0)
-            e_hi = max(A.error_at(hi) if not hi < ahi else 0.0, B.error_at(hi) if not hi < bhi else 0.0)
-            if lo + e_lo < hi - e_hi:
-                out.append((i, j, interval_point(lo + e_lo, hi - e_hi)))
+        _join_point(A, B, i, j, alo, ahi, blo, bhi, out)
     return out
 
 
