@@ -25,9 +25,9 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["Region", "LineData", "SkippedLines", "make_region", "admissible_intervals", "pieces", "best_piece", "component_lines",
-           "component_extent", "hinf_intervals", "stable_intervals", "default_window", "extent", "area", "contains",
-           "mask", "signed_distance"]
+__all__ = ["Region", "LineData", "SkippedLines", "make_region", "admissible_intervals", "pieces", "best_piece",
+           "component_lines", "component_extent", "hinf_intervals", "stable_intervals", "default_window", "extent",
+           "area", "contains", "mask", "signed_distance"]
 
 _INF = math.inf
 _WHAT = ("admissible", "hinf", "stable")
@@ -185,9 +185,10 @@ class Region:
 @dataclass(frozen=True)
 class SkippedLines:
     """Sweep lines a design left out: none of them has an H-infinity-admissible ``ky`` at or above ``floor``
-    in the search range, shown by exact forbidden intervals at ``probe`` frequencies (and the limit
-    columns), and the best component found without them ends inside the lines scanned, so the optimum is
-    the same with or without them (:func:`posicast.tune.scan.forbidden_above`).
+    in the search range, shown by exact forbidden intervals on ``probe`` frequency columns (grid columns,
+    frequencies up to the delay ceiling, the limit columns: :func:`posicast.tune.scan.forbidden_above`), and
+    the best component found without them ends inside the lines scanned, so the optimum is the same with or
+    without them.
 
     Attributes
     ----------
@@ -196,7 +197,7 @@ class SkippedLines:
     floor : float
         The ``ky`` from which up each of them is shown forbidden.
     probe : int
-        How many frequencies showed it.
+        How many frequency columns showed it.
     n_sweep : int
         Lines of the whole sweep.
     """

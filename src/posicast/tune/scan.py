@@ -314,7 +314,7 @@ def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
 
 def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) -> tuple[np.ndarray, int]:
     """Which lines ``xs`` have no H-infinity-admissible ``ky`` in ``[floor, y_window[1]]``, shown on a probe;
-    and how many frequencies the probe has.
+    and how many frequency columns the probe has.
 
     The probe: about :data:`_PROBE_COLUMNS` evenly spaced grid columns, as many frequencies evenly spaced
     from the grid's end up to ``top`` [rad/s] (exact values), and the limit columns.  Each column's
