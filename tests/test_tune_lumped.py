@@ -244,13 +244,13 @@ def test_inner_sweep_gives_the_whole_sweep_optimum(staged_and_whole):
         if arch == "control_action":
             sk = staged.region.skipped
             assert sk is not None and sk.x.size == 16 and sk.floor == 0.0 and sk.n_sweep == 67
-            assert staged.region.sweep_lines == 67 and f"the design scanned 51 of them" in staged.summary()
+            assert staged.region.sweep_lines == 67 and "the design scanned 51 of them" in staged.summary()
 
 
 def test_skipped_lines_hold_no_admissible_gain_above_the_floor(staged_and_whole):
     """What the probe showed, checked on the whole sweep's exact scan (scanned when asked for): none of the
     lines left out has an H-infinity-admissible Kp >= 0. For the inverse ZV loop the probe cannot show it
-    (lines at Kd 218-2178 are admissible up to Kp ~ 8e4, in unstable cells): every line is scanned."""
+    (lines at Kd 689-2178 are admissible up to Kp ~ 8e4, in unstable cells): every line is scanned."""
     for (arch, kind), (staged, whole) in staged_and_whole.items():
         sweep = staged.region.sweep
         assert sweep.x.size == 67
@@ -387,3 +387,18 @@ def test_meets_is_the_complement_test():
             a = -np.inf
         ref = [bool(np.any(np.maximum(iv[:, 0], a) < np.minimum(iv[:, 1], b))) for iv, _ in complement(f)]
         assert meets(f, a, b).tolist() == ref
+
+
+def test_a_grid_stopped_at_its_cap_is_said_in_the_reason(monkeypatch):
+    """A frequency grid that reaches its size cap before every interval meets the refinement rule resolves the
+    loop less finely than the scan assumes: the result's reason says so (it was silent before wave 8). Here
+    1/(s(s+1)) e^{-0.02 s} with a ZVD shaper and every sweep line scanned reaches the 400 000-point cap; the
+    inner sweep's grid (55 556 columns) does not, and its reason has no such note."""
+    G = posicast.TransferFunction.from_poly([1.0], [1.0, 1.0, 0.0], delay=0.02)
+    S = posicast.design("zvd", posicast.Mode.from_hz(2.0, 0.05))
+    staged = posicast.tune_pd(G, S, "control_action", ms=2.0)
+    assert staged.stable and not staged.region.problem.fd.capped and "cap" not in staged.reason
+    monkeypatch.setattr(design_module, "INNER_DECADES", 10)
+    whole = posicast.tune_pd(G, S, "control_action", ms=2.0)
+    assert whole.region.problem.fd.capped and "400,000-point cap" in whole.reason
+    assert whole.stable and whole.kp == pytest.approx(staged.kp, rel=1e-5)

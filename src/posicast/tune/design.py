@@ -40,6 +40,7 @@ from ..loops import Loop, feature_frequencies
 from .cells import Cells, interval_point, join_lines
 from .constraints import Constraint
 from .family import ControllerFamily, pd_family, pi_family, pid_family
+from .frequency import _MAX_POINTS as _MAX_GRID
 from .frequency import Asymptote, FrequencyData, _poly_tf
 from .inputs import (architecture_argument, check_architecture, check_blocks, check_range, constraint_tuple,
                      constraints_with_ms)
@@ -384,6 +385,11 @@ def tune(
     # ---- the optimum
     t0 = time.perf_counter()
     result = optimum(tuner, problem, region, yr, unbounded_x, auto_y)
+    if problem.fd.capped:  # a grid that could not be refined as the scan assumes: the result says so
+        result = replace(result, reason=result.reason + (
+            f"; the frequency grid stopped at its {_MAX_GRID:,}-point cap before every interval met the "
+            "refinement rule: the region is resolved less finely than stated at the largest gains (a returned "
+            "design is still verified independently)"))
     timings["optimum and checks"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     return _with_timings(result, timings)

@@ -178,6 +178,9 @@ class FrequencyData:
         The finite grid [rad/s] (increasing, > 0, possibly with 0 first).
     n_grid : int
         Number of finite columns; the remaining columns are limits.
+    capped : bool
+        The grid reached its size cap (:data:`_MAX_POINTS`) with intervals still coarser than the
+        refinement rule accepts: it resolves the loop less finely than stated, at the largest gains.
     u, a, b : ndarray of complex
     cons : list of dict with ``nu, na, nb, w2`` arrays
     """
@@ -186,6 +189,7 @@ class FrequencyData:
                  scale: tuple[float, float], delta: float = 0.03, limit_for_delays: bool = False) -> None:
         self.family = family
         self.constraints = tuple(constraints)
+        self.capped = False
         Pg = loop0.plant_gain
         self.plant = Pg
         self._plant_axis = OnAxis(Pg)
@@ -425,7 +429,10 @@ class FrequencyData:
         new_v: list[dict[str, np.ndarray]] = []
         for _ in range(_REFINE_ROUNDS):
             bad = self._bad_intervals(wl, wr, el, er, fl, fr)
-            if not np.any(bad) or n_total >= _MAX_POINTS:
+            if not np.any(bad):
+                break
+            if n_total >= _MAX_POINTS:  # intervals still too coarse: said in the design's reason
+                self.capped = True
                 break
             idx = np.flatnonzero(bad)
             if n_total + idx.size > _MAX_POINTS:
