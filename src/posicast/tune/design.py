@@ -337,7 +337,9 @@ def tune(
         return _with_timings(empty_result(tuner, region, weak), timings)
     skipped = None
     if inner is not None:
-        shown, n_probe = forbidden_above(problem, xs1[~inner], 0.0, float(problem.fd.delay_ceiling))
+        cols = problem.columns  # (a lumped shaper has delays: the ceiling is set)
+        top = problem.fd.delay_ceiling or float(cols.omega[cols.n_grid - 1])
+        shown, n_probe = forbidden_above(problem, xs1[~inner], 0.0, top)
         if shown.all():
             skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size))
         else:  # the grid extended to the whole sweep's gains
