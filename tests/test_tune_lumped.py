@@ -235,36 +235,39 @@ def staged_and_whole():
 
 
 def test_inner_sweep_gives_the_whole_sweep_optimum(staged_and_whole):
-    """With a lumped shaper in the control action the design scans the 51 sweep lines within 10^2 natural
-    scales of Kd; the 16 outer ones are shown to hold no admissible Kp >= 0 and left out. The optimum is the
-    one found with all 67 lines scanned, to the last digit, and the verification is the same."""
+    """With a lumped shaper in the loop the design scans the 51 sweep lines within 10^2 natural scales of Kd;
+    the 16 outer ones are shown to hold no admissible Kp >= 0 and left out (for the inverse ZV loop, three of
+    them only in one cell shown unstable). The optimum is the one found with all 67 lines scanned, to the last
+    digit, and the verification is the same."""
     for (arch, kind), (staged, whole) in staged_and_whole.items():
         assert (staged.kp, staged.kd, staged.ms, staged.stable) == (whole.kp, whole.kd, whole.ms, whole.stable)
         assert whole.region.skipped is None
-        if arch == "control_action":
-            sk = staged.region.skipped
-            assert sk is not None and sk.x.size == 16 and sk.floor == 0.0 and sk.n_sweep == 67
-            assert staged.region.sweep_lines == 67 and "the design scanned 51 of them" in staged.summary()
+        sk = staged.region.skipped
+        assert sk is not None and sk.x.size == 16 and sk.floor == 0.0 and sk.n_sweep == 67
+        assert sk.unstable == (1 if arch == "inverse_shaper" else 0)
+        assert staged.region.sweep_lines == 67 and "the design scanned 51 of them" in staged.summary()
+    assert "only in 1 cell shown unstable" in staged_and_whole[("inverse_shaper", "zv")][0].summary()
 
 
 def test_skipped_lines_hold_no_admissible_gain_above_the_floor(staged_and_whole):
-    """What the probe showed, checked on the whole sweep's exact scan (scanned when asked for): none of the
-    lines left out has an H-infinity-admissible Kp >= 0. For the inverse ZV loop the probe cannot show it
-    (lines at Kd 689-2178 are admissible up to Kp ~ 8e4, in unstable cells): every line is scanned."""
+    """What the design showed, checked on the whole sweep's exact scan (scanned when asked for, with its own
+    spectrum checks): none of the lines left out has a stable H-infinity-admissible Kp >= 0. In the control
+    action none has an admissible one at all; in the inverse ZV loop the lines at Kd 689-2178 are admissible up
+    to Kp ~ 8e4, in unstable cells only."""
+    from posicast.tune.regions import pieces, segment_stable
+
     for (arch, kind), (staged, whole) in staged_and_whole.items():
         sweep = staged.region.sweep
         assert sweep.x.size == 67
+        left_out = np.isin(sweep.x, staged.region.skipped.x)
+        assert left_out.sum() == 16
+        above = [(int(i), lo, hi, j) for i in np.flatnonzero(left_out) for lo, hi, j in pieces(sweep, int(i))
+                 if hi > 0.0]
         if arch == "control_action":
-            left_out = np.isin(sweep.x, staged.region.skipped.x)
-            assert left_out.sum() == 16
-            for i in np.flatnonzero(left_out):
-                iv = sweep.hinf_intervals(int(i))
-                assert not np.any(iv[:, 1] > 0.0)
+            assert not above
         else:
-            assert staged.region.skipped is None
-            sx = np.abs(sweep.x[sweep.x != 0]).min() * 1e4  # the natural scale: the sweep starts at 1e-4 of it
-            outer = np.abs(sweep.x) > 100 * sx * (1 + 1e-9)
-            assert any(np.any(sweep.hinf_intervals(int(i))[:, 1] > 1e4) for i in np.flatnonzero(outer))
+            assert len(above) == 3 and all(hi > 6e4 for _, _, hi, _ in above)
+            assert all(segment_stable(sweep, i, j, 0.5 * (max(lo, 0.0) + hi)) is False for i, lo, hi, j in above)
 
 
 def test_inner_sweep_falls_back_when_the_outer_lines_may_matter(monkeypatch):
@@ -310,6 +313,30 @@ def test_inner_decides_only_when_the_best_component_ends_inside(staged_and_whole
     cut = make_region(sweep.problem, sweep.family, list(sweep.lines[: comp.max()]), sweep.cells, sweep.y_range)
     assert not _inner_decides(cut, best_piece(cut))
     assert not _inner_decides(sweep, None) and not _inner_decides(sweep, (best[0], best[1] - 1e9, -1.0))
+
+
+def test_unstable_above_refuses_a_stable_piece_and_many_lines(staged_and_whole, monkeypatch):
+    """The stability test of the outer lines shows nothing where a stable admissible piece lies above the floor
+    (the crane's best ZV design, Kp 8.6 at Kd 1.47: the lines around it) and does not scan more than
+    _UNSTABLE_LINES lines or check more than _UNSTABLE_CELLS cells; the inverse ZV loop's three lines are one
+    unstable cell."""
+    from posicast.tune.design import _UNSTABLE_LINES, _unstable_above
+
+    best = staged_and_whole[("control_action", "zv")][0]
+    p = best.region.problem
+    xs = np.array([0.9, 1.0, 1.1]) * best.kd
+    assert _unstable_above(p, best.family, xs, 1.0, (-1e3, 1e3), 0.0) is None
+    assert _unstable_above(p, best.family, xs, 1.0, (-1e3, 1e3), best.kp * 1.01) == 0  # nothing admissible above
+    many = np.linspace(1.0, 2.0, _UNSTABLE_LINES + 1) * best.kd
+    assert _unstable_above(p, best.family, many, 1.0, (-1e3, 1e3), best.kp * 1.01) is None
+    inv = staged_and_whole[("inverse_shaper", "zv")][0]
+    sk = inv.region.skipped.x
+    outer = sk[(sk > 600) & (sk < 3000)]  # Kd 689, 1225, 2178: the lines admissible up to Kp ~ 8e4
+    assert outer.size == 3
+    sy = float(inv.region.sweep.y_range[1]) / 1e4
+    assert _unstable_above(inv.region.problem, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) == 1
+    monkeypatch.setattr(design_module, "_UNSTABLE_CELLS", 0)  # more cells than checks allowed: not shown
+    assert _unstable_above(inv.region.problem, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) is None
 
 
 def _overlaps_by_merge(A, B, ma, mb):

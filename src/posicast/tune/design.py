@@ -26,6 +26,7 @@ constraints on a line; :mod:`~posicast.tune.refine` refines their ends),
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import replace
@@ -197,6 +198,43 @@ def _inner_decides(region: Region, best: tuple[int, float, float] | None) -> boo
     return bool(comp.min() > 0 and comp.max() < region.x.size - 1)
 
 
+#: :func:`_unstable_above` scans at most this many outer lines and checks at most this many cells (each check
+#: of a cell at such gains costs about 45 ms on the crane): beyond, the whole sweep is the cheaper way
+_UNSTABLE_LINES = 8
+_UNSTABLE_CELLS = 4
+
+
+def _unstable_above(problem: Problem, family: ControllerFamily, xs: np.ndarray, sy: float,
+                    yr: tuple[float, float], floor: float) -> int | None:
+    """How many cells a certified spectrum check showed unstable to show that the lines ``xs`` hold no *stable*
+    H-infinity-admissible ``ky >= floor``; None when that is not shown (the whole sweep is scanned then).
+
+    Lines the probe of :func:`~posicast.tune.scan.forbidden_above` does not show forbidden may hold admissible
+    gains in unstable cells only (issue #15: the inverse-shaper loop with a ZV shaper on the seed 001 crane is
+    H-infinity-admissible up to ``ky`` 6.5e4-8.2e4 at ``kx`` 689-2178, in one cell with unstable roots). These
+    few lines are scanned exactly on a copy of the grid extended to their gains (the inner lines keep their
+    own, smaller grid), and joined; a cell's roots cross the imaginary axis only on its boundary, so one check
+    per cell holding an admissible piece at or above ``floor`` decides them all."""
+    if xs.size > _UNSTABLE_LINES:
+        return None
+    fd = copy.copy(problem.fd)  # refine() replaces the grid's arrays: the copy leaves the inner grid as it is
+    fd.refine((float(np.max(np.abs(xs))), 4 * sy), ceiling=fd.delay_ceiling)
+    outer = regrid(problem, fd)
+    if np.any(np.abs(xs) > outer.x_valid):
+        return None
+    region = _build_region(outer, family, xs, yr)
+    cells: dict[int, tuple[int, int, float]] = {}
+    for i, ln in enumerate(region.lines):
+        for lo, hi, j in pieces(region, i):
+            if hi > floor:
+                cells.setdefault(region.cells.find(int(ln.comp[j])), (i, j, interval_point(max(lo, floor), hi)))
+    if len(cells) > _UNSTABLE_CELLS:
+        return None
+    if any(segment_stable(region, i, j, y) is not False for i, j, y in cells.values()):
+        return None
+    return len(cells)
+
+
 def _whole_sweep(tuner: _Tuner, family: ControllerFamily, cons: tuple[Constraint, ...], xs: np.ndarray, sx: float,
                  sy: float, yr: tuple[float, float]) -> Callable[[], Region]:
     """What scans pass 1 on every sweep line (as a design without the inner pass does), when first asked for."""
@@ -340,8 +378,9 @@ def tune(
         cols = problem.columns  # (a lumped shaper has delays: the ceiling is set)
         top = problem.fd.delay_ceiling or float(cols.omega[cols.n_grid - 1])
         shown, n_probe = forbidden_above(problem, xs1[~inner], 0.0, top)
-        if shown.all():
-            skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size))
+        n_unstable = 0 if shown.all() else _unstable_above(problem, family, xs1[~inner][~shown], sy, yr, 0.0)
+        if n_unstable is not None:
+            skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size), n_unstable)
         else:  # the grid extended to the whole sweep's gains
             problem.fd.refine((float(np.max(np.abs(xs1))), 4 * sy), ceiling=problem.fd.delay_ceiling)
             problem = regrid(problem)

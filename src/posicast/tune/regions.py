@@ -184,11 +184,13 @@ class Region:
 
 @dataclass(frozen=True)
 class SkippedLines:
-    """Sweep lines a design left out: none of them has an H-infinity-admissible ``ky`` at or above ``floor``
-    in the search range, shown by exact forbidden intervals on ``probe`` frequency columns (grid columns,
-    frequencies up to the delay ceiling, the limit columns: :func:`posicast.tune.scan.forbidden_above`), and
-    the best component found without them ends inside the lines scanned, so the optimum is the same with or
-    without them.
+    """Sweep lines a design left out: none of them has a stable H-infinity-admissible ``ky`` at or above
+    ``floor`` in the search range, and the best component found without them ends inside the lines scanned,
+    so the optimum is the same with or without them. Most are shown to have no admissible ``ky`` there at all
+    by exact forbidden intervals on ``probe`` frequency columns (grid columns, frequencies up to the delay
+    ceiling, the limit columns: :func:`posicast.tune.scan.forbidden_above`); the few others are scanned
+    exactly, and their admissible pieces there lie in ``unstable`` cells, each shown unstable by a certified
+    spectrum check.
 
     Attributes
     ----------
@@ -200,12 +202,15 @@ class SkippedLines:
         How many frequency columns showed it.
     n_sweep : int
         Lines of the whole sweep.
+    unstable : int
+        Cells shown unstable by a certified spectrum check (0: the probe alone showed every line).
     """
 
     x: np.ndarray
     floor: float
     probe: int
     n_sweep: int
+    unstable: int = 0
 
 
 def make_region(problem: Problem, family: ControllerFamily, lines: list[LineData], cells: Cells,

@@ -179,7 +179,10 @@ class TuningResult:
             sk = reg.skipped
             out += (f"\n  the design scanned {sk.n_sweep - sk.x.size} of them: on the {sk.x.size} with "
                     f"|{reg.x_name}| >= {float(np.min(np.abs(sk.x))):.4g} no {reg.y_name} >= {sk.floor:.4g} meets "
-                    f"the constraints (shown exactly on {sk.probe} frequency columns)")
+                    f"the constraints (shown exactly on {sk.probe} frequency columns"
+                    + ("" if not sk.unstable else f", or it does only in {sk.unstable} cell"
+                       f"{'s' if sk.unstable > 1 else ''} shown unstable by a spectrum check")
+                    + ")")
         return out
 
     def __repr__(self) -> str:

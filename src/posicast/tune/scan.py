@@ -135,10 +135,11 @@ def make_problem(fd: FrequencyData, loop_factory: Callable[[float, float], Loop]
                     y_window, StabilityLedger())
 
 
-def regrid(problem: Problem) -> Problem:
-    """The same problem on its frequency data's new grid (after :meth:`FrequencyData.refine`)."""
-    return _on_grid(problem.fd, problem.loop_factory, problem.real, problem.infinite, problem.y_window,
-                    problem.ledger)
+def regrid(problem: Problem, fd: FrequencyData | None = None) -> Problem:
+    """The same problem on its frequency data's new grid (after :meth:`FrequencyData.refine`), or on ``fd``'s
+    (a refined copy of it), with the same stability ledger."""
+    return _on_grid(problem.fd if fd is None else fd, problem.loop_factory, problem.real, problem.infinite,
+                    problem.y_window, problem.ledger)
 
 
 def _on_grid(fd: FrequencyData, loop_factory: Callable[[float, float], Loop], real: RealBoundary,
@@ -289,6 +290,11 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
 
 #: the probe of :func:`_forbidden_on_probe`: about this many evenly spaced grid columns
 _PROBE_COLUMNS = 1024
+#: the probe of :func:`forbidden_above`: every grid column up to this many (the inner lines' grid has 12 000 to
+#: 25 000 on the seed 001 crane: every 18th column left 9 outer lines of the inverse ZV loop unshown, every
+#: column 4), and this many frequencies from the grid's end to the top
+_ABOVE_GRID_COLUMNS = 32768
+_ABOVE_TOP_COLUMNS = 1024
 
 
 def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
@@ -316,8 +322,9 @@ def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) 
     """Which lines ``xs`` have no H-infinity-admissible ``ky`` in ``[floor, y_window[1]]``, shown on a probe;
     and how many frequency columns the probe has.
 
-    The probe: about :data:`_PROBE_COLUMNS` evenly spaced grid columns, as many frequencies evenly spaced
-    from the grid's end up to ``top`` [rad/s] (exact values), and the limit columns.  Each column's
+    The probe: the grid's columns (about :data:`_ABOVE_GRID_COLUMNS` evenly spaced ones on a larger grid),
+    :data:`_ABOVE_TOP_COLUMNS` frequencies evenly spaced from the grid's end up to ``top`` [rad/s] (exact
+    values), and the limit columns.  Each column's
     forbidden intervals are exact (every constraint fails there, at that frequency), whatever the gains:
     the grid need not be valid for ``xs``.  So a line shown here has no admissible gain at or above
     ``floor``; a line not shown may still have none (the probe is a sample).  Issue #15: with a lumped
@@ -327,10 +334,10 @@ def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) 
     cols = problem.columns
     key = ("probe above", float(top))
     if key not in cols.cache:
-        probe = grid_subset(cols, np.arange(0, cols.n_grid, max(1, cols.n_grid // _PROBE_COLUMNS)))
+        probe = grid_subset(cols, np.arange(0, cols.n_grid, max(1, cols.n_grid // _ABOVE_GRID_COLUMNS)))
         end = float(cols.omega[cols.n_grid - 1])
         if top > end:
-            probe = with_frequencies(probe, np.linspace(end, top, _PROBE_COLUMNS + 1)[1:])
+            probe = with_frequencies(probe, np.linspace(end, top, _ABOVE_TOP_COLUMNS + 1)[1:])
         cols.cache[key] = probe
     probe = cols.cache[key]
     shown = ~meets(forbidden(probe, xs, range(cols.n_constraints), hull=False), floor, problem.y_window[1])
