@@ -281,6 +281,23 @@ def test_inner_sweep_falls_back_when_the_outer_lines_may_matter(monkeypatch):
     assert narrow.kp == pytest.approx(reference.kp, rel=1e-9) and narrow.kd == pytest.approx(reference.kd, rel=1e-9)
 
 
+def test_lines_left_out_are_named_when_the_region_is_not_windowed(monkeypatch):
+    """A small final grid (no ky window in pass 2: the region covers the whole search range and keeps no sweep)
+    still names the sweep lines pass 1 left out (before, a region without a window dropped them). Here
+    1/(s(s+1)) with a ZV shaper (2 Hz, 0.05), Ms 1.6: the same gains as with every sweep line scanned, to the
+    last digit."""
+    G = posicast.TransferFunction.from_poly([1.0], [1.0, 1.0, 0.0])
+    S = posicast.design("zv", posicast.Mode.from_hz(2.0, 0.05))
+    staged = posicast.tune_pd(G, S, "control_action", ms=1.6)
+    assert not staged.region.windowed and staged.region.sweep is None
+    sk = staged.region.skipped
+    assert sk is not None and sk.x.size == 16 and sk.n_sweep == 67
+    assert "the design scanned 51 of the 67 sweep lines in its first pass" in staged.summary()
+    monkeypatch.setattr(design_module, "INNER_DECADES", 10)
+    whole = posicast.tune_pd(G, S, "control_action", ms=1.6)
+    assert whole.region.skipped is None and (whole.kp, whole.kd) == (staged.kp, staged.kd)
+
+
 def test_valid_gains_bound_the_terms_past_the_grid_end(staged_and_whole):
     """x_valid and y_valid promise |kx a| and |ky b| below the settled level past the grid's end. With a
     lumped shaper |a| and |b| oscillate there (S has zeros near the axis every period), so the bound comes

@@ -139,8 +139,8 @@ def _build_region(problem: Problem, family: ControllerFamily, xs: np.ndarray,
     if previous is not None and lines:
         _inherit_labels(problem, previous.cells, lines, cells, xs)
     windowed = search_range is not None and tuple(search_range) != tuple(y_range)
-    if not windowed:
-        return make_region(problem, family, lines, cells, y_range, search_range)
+    if not windowed:  # the whole range on these lines: no sweep kept, but the lines pass 1 left out are named
+        return make_region(problem, family, lines, cells, y_range, search_range, skipped=skipped)
     return make_region(problem, family, lines, cells, y_range, search_range,
                        previous if whole_sweep is None else whole_sweep, skipped)
 

@@ -177,7 +177,8 @@ class TuningResult:
                     f"sweep lines only (region.sweep)")
         if reg.skipped is not None:
             sk = reg.skipped
-            out += (f"\n  the design scanned {sk.n_sweep - sk.x.size} of them: on the {sk.x.size} with "
+            of = "of them" if reg.windowed else f"of the {sk.n_sweep} sweep lines in its first pass"
+            out += (f"\n  the design scanned {sk.n_sweep - sk.x.size} {of}: on the {sk.x.size} with "
                     f"|{reg.x_name}| >= {float(np.min(np.abs(sk.x))):.4g} no {reg.y_name} >= {sk.floor:.4g} meets "
                     f"the constraints (shown exactly on {sk.probe} frequency columns"
                     + ("" if not sk.unstable else f", or it does only in {sk.unstable} cell"
