@@ -244,9 +244,10 @@ def test_inner_sweep_gives_the_whole_sweep_optimum(staged_and_whole):
         assert whole.region.skipped is None
         sk = staged.region.skipped
         assert sk is not None and sk.x.size == 16 and sk.floor == 0.0 and sk.n_sweep == 67
-        assert sk.unstable == (1 if arch == "inverse_shaper" else 0)
+        assert (sk.scanned, sk.unstable) == ((4, 1) if arch == "inverse_shaper" else (0, 0))
         assert staged.region.sweep_lines == 67 and "the design scanned 51 of them" in staged.summary()
-    assert "only in 1 cell shown unstable" in staged_and_whole[("inverse_shaper", "zv")][0].summary()
+    assert ("4 scanned exactly on an extended grid: their admissible kp there in 1 cell shown unstable"
+            in staged_and_whole[("inverse_shaper", "zv")][0].summary())
 
 
 def test_skipped_lines_hold_no_admissible_gain_above_the_floor(staged_and_whole):
@@ -334,26 +335,33 @@ def test_inner_decides_only_when_the_best_component_ends_inside(staged_and_whole
 
 def test_unstable_above_refuses_a_stable_piece_and_many_lines(staged_and_whole, monkeypatch):
     """The stability test of the outer lines shows nothing where a stable admissible piece lies above the floor
-    (the crane's best ZV design, Kp 8.6 at Kd 1.47: the lines around it) and does not scan more than
-    _UNSTABLE_LINES lines or check more than _UNSTABLE_CELLS cells; the inverse ZV loop's three lines are one
-    unstable cell."""
-    from posicast.tune.design import _UNSTABLE_LINES, _unstable_above
+    (the crane's best ZV design, Kp 8.6 at Kd 1.47: the lines around it), shows the lines around it above the
+    optimum, does not scan more than _UNSTABLE_LINES lines or check more than _UNSTABLE_CELLS cells, and leaves
+    the grid it extends a copy of as it was; the inverse ZV loop's three lines are one unstable cell, one
+    spectrum check counted in the design's ledger."""
+    from posicast.tune.design import _UNSTABLE_LINES, _sweep_runs, _unstable_above
 
     best = staged_and_whole[("control_action", "zv")][0]
     p = best.region.problem
-    xs = np.array([0.9, 1.0, 1.1]) * best.kd
+    xs = [np.array([0.9, 1.0, 1.1]) * best.kd]
     assert _unstable_above(p, best.family, xs, 1.0, (-1e3, 1e3), 0.0) is None
-    assert _unstable_above(p, best.family, xs, 1.0, (-1e3, 1e3), best.kp * 1.01) == 0  # nothing admissible above
-    many = np.linspace(1.0, 2.0, _UNSTABLE_LINES + 1) * best.kd
+    assert _unstable_above(p, best.family, xs, 1.0, (-1e3, 1e3), best.kp * 1.01) is not None  # the optimum's top
+    many = [np.linspace(1.0, 2.0, _UNSTABLE_LINES + 1) * best.kd]
     assert _unstable_above(p, best.family, many, 1.0, (-1e3, 1e3), best.kp * 1.01) is None
     inv = staged_and_whole[("inverse_shaper", "zv")][0]
     sk = inv.region.skipped.x
-    outer = sk[(sk > 600) & (sk < 3000)]  # Kd 689, 1225, 2178: the lines admissible up to Kp ~ 8e4
-    assert outer.size == 3
+    outer = [sk[(sk > 600) & (sk < 3000)]]  # Kd 689, 1225, 2178: the lines admissible up to Kp ~ 8e4
+    assert outer[0].size == 3
     sy = float(inv.region.sweep.y_range[1]) / 1e4
-    assert _unstable_above(inv.region.problem, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) == 1
+    q = inv.region.problem
+    omega, n_grid, calls = q.fd.omega, q.fd.n_grid, q.ledger.calls
+    assert _unstable_above(q, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) == 1
+    assert q.fd.omega is omega and q.fd.n_grid == n_grid == q.columns.n_grid and q.ledger.calls == calls + 1
     monkeypatch.setattr(design_module, "_UNSTABLE_CELLS", 0)  # more cells than checks allowed: not shown
-    assert _unstable_above(inv.region.problem, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) is None
+    assert _unstable_above(q, inv.family, outer, sy, inv.region.sweep.y_range, 0.0) is None
+    # joins run between neighbouring sweep lines only: the lines in runs of neighbours
+    runs = _sweep_runs(np.arange(10.0), np.array([0, 1, 1, 0, 1, 0, 0, 1, 1, 1], dtype=bool))
+    assert [r.tolist() for r in runs] == [[1.0, 2.0], [4.0], [7.0, 8.0, 9.0]]
 
 
 def _overlaps_by_merge(A, B, ma, mb):

@@ -38,7 +38,7 @@ from .. import _validate as v
 from ..core.quasipoly import QuasiPolynomial
 from ..core.transfer import TransferFunction, as_transfer
 from ..loops import Loop, feature_frequencies
-from .cells import Cells, interval_point, join_lines
+from .cells import Cells, StabilityLedger, interval_point, join_lines
 from .constraints import Constraint
 from .family import ControllerFamily, pd_family, pi_family, pid_family
 from .frequency import _MAX_POINTS as _MAX_GRID
@@ -204,35 +204,50 @@ _UNSTABLE_LINES = 8
 _UNSTABLE_CELLS = 4
 
 
-def _unstable_above(problem: Problem, family: ControllerFamily, xs: np.ndarray, sy: float,
+def _unstable_above(problem: Problem, family: ControllerFamily, runs: list[np.ndarray], sy: float,
                     yr: tuple[float, float], floor: float) -> int | None:
-    """How many cells a certified spectrum check showed unstable to show that the lines ``xs`` hold no *stable*
-    H-infinity-admissible ``ky >= floor``; None when that is not shown (the whole sweep is scanned then).
+    """How many cells a certified spectrum check showed unstable to show that the lines of ``runs`` hold no
+    *stable* H-infinity-admissible ``ky`` in ``[floor, yr[1]]``; None when that is not shown (the whole sweep is
+    scanned then).
 
     Lines the probe of :func:`~posicast.tune.scan.forbidden_above` does not show forbidden may hold admissible
     gains in unstable cells only (issue #15: the inverse-shaper loop with a ZV shaper on the seed 001 crane is
     H-infinity-admissible up to ``ky`` 6.5e4-8.2e4 at ``kx`` 689-2178, in one cell with unstable roots). These
-    few lines are scanned exactly on a copy of the grid extended to their gains (the inner lines keep their
-    own, smaller grid), and joined; a cell's roots cross the imaginary axis only on its boundary, so one check
-    per cell holding an admissible piece at or above ``floor`` decides them all."""
+    few lines are scanned exactly over ``yr`` (within the gains the grid verifies, as in the whole sweep) on a
+    copy of the grid extended to their gains (the inner lines keep their own, smaller grid). Each run of lines
+    neighbouring in the sweep is joined into cells; a cell's roots cross the imaginary axis only on its
+    boundary, so one check per cell holding an admissible piece at or above ``floor`` decides them all. A copy
+    stopped at its size cap, or a check that fails, shows nothing (the checks are counted in the design's ledger,
+    their failures are not: the whole sweep decides then)."""
+    xs = np.concatenate(runs)
     if xs.size > _UNSTABLE_LINES:
         return None
     fd = copy.copy(problem.fd)  # refine() replaces the grid's arrays: the copy leaves the inner grid as it is
     fd.refine((float(np.max(np.abs(xs))), 4 * sy), ceiling=fd.delay_ceiling)
-    outer = regrid(problem, fd)
-    if np.any(np.abs(xs) > outer.x_valid):
+    outer = replace(regrid(problem, fd), y_window=yr, ledger=StabilityLedger())
+    if fd.capped or np.any(np.abs(xs) > outer.x_valid):
         return None
-    region = _build_region(outer, family, xs, yr)
-    cells: dict[int, tuple[int, int, float]] = {}
-    for i, ln in enumerate(region.lines):
-        for lo, hi, j in pieces(region, i):
-            if hi > floor:
-                cells.setdefault(region.cells.find(int(ln.comp[j])), (i, j, interval_point(max(lo, floor), hi)))
+    cells: list[tuple[Region, int, int, float]] = []
+    for run in runs:
+        region = _build_region(outer, family, run, yr)
+        first: dict[int, tuple[Region, int, int, float]] = {}
+        for i, ln in enumerate(region.lines):
+            for lo, hi, j in pieces(region, i):
+                if hi > floor:
+                    root = region.cells.find(int(ln.comp[j]))
+                    first.setdefault(root, (region, i, j, interval_point(max(lo, floor), hi)))
+        cells += first.values()
     if len(cells) > _UNSTABLE_CELLS:
         return None
-    if any(segment_stable(region, i, j, y) is not False for i, j, y in cells.values()):
-        return None
-    return len(cells)
+    unstable = all(segment_stable(region, i, j, y) is False for region, i, j, y in cells)
+    problem.ledger.calls += outer.ledger.calls
+    return len(cells) if unstable else None
+
+
+def _sweep_runs(xs: np.ndarray, mask: np.ndarray) -> list[np.ndarray]:
+    """The lines ``xs[mask]`` in runs of neighbours in ``xs`` (joins are made between neighbouring lines only)."""
+    idx = np.flatnonzero(mask)
+    return [xs[r] for r in np.split(idx, np.flatnonzero(np.diff(idx) != 1) + 1) if r.size]
 
 
 def _whole_sweep(tuner: _Tuner, family: ControllerFamily, cons: tuple[Constraint, ...], xs: np.ndarray, sx: float,
@@ -378,9 +393,11 @@ def tune(
         cols = problem.columns  # (a lumped shaper has delays: the ceiling is set)
         top = problem.fd.delay_ceiling or float(cols.omega[cols.n_grid - 1])
         shown, n_probe = forbidden_above(problem, xs1[~inner], 0.0, top)
-        n_unstable = 0 if shown.all() else _unstable_above(problem, family, xs1[~inner][~shown], sy, yr, 0.0)
+        unshown = np.zeros(xs1.size, dtype=bool)
+        unshown[np.flatnonzero(~inner)[~shown]] = True
+        n_unstable = 0 if shown.all() else _unstable_above(problem, family, _sweep_runs(xs1, unshown), sy, yr, 0.0)
         if n_unstable is not None:
-            skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size), n_unstable)
+            skipped = SkippedLines(xs1[~inner], 0.0, n_probe, int(xs1.size), int(unshown.sum()), n_unstable)
         else:  # the grid extended to the whole sweep's gains
             problem.fd.refine((float(np.max(np.abs(xs1))), 4 * sy), ceiling=problem.fd.delay_ceiling)
             problem = regrid(problem)

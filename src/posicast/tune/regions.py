@@ -188,28 +188,31 @@ class SkippedLines:
     ``floor`` in the search range, and the best component found without them ends inside the lines scanned,
     so the optimum is the same with or without them. Most are shown to have no admissible ``ky`` there at all
     by exact forbidden intervals on ``probe`` frequency columns (grid columns, frequencies up to the delay
-    ceiling, the limit columns: :func:`posicast.tune.scan.forbidden_above`); the few others are scanned
-    exactly, and their admissible pieces there lie in ``unstable`` cells, each shown unstable by a certified
-    spectrum check.
+    ceiling, the limit columns: :func:`posicast.tune.scan.forbidden_above`); the ``scanned`` others were scanned
+    exactly on a grid extended for them, and their admissible pieces there lie in ``unstable`` cells, each
+    shown unstable by a certified spectrum check.
 
     Attributes
     ----------
     x : ndarray
         The lines left out.
     floor : float
-        The ``ky`` from which up each of them is shown forbidden.
+        The ``ky`` from which up none of them holds a stable admissible gain.
     probe : int
-        How many frequency columns showed it.
+        How many frequency columns the probe has.
     n_sweep : int
         Lines of the whole sweep.
+    scanned : int
+        Lines the probe did not show, scanned exactly instead (0: the probe showed every line).
     unstable : int
-        Cells shown unstable by a certified spectrum check (0: the probe alone showed every line).
+        Cells of the scanned lines with an admissible piece at or above ``floor``, each shown unstable.
     """
 
     x: np.ndarray
     floor: float
     probe: int
     n_sweep: int
+    scanned: int = 0
     unstable: int = 0
 
 

@@ -178,12 +178,17 @@ class TuningResult:
         if reg.skipped is not None:
             sk = reg.skipped
             of = "of them" if reg.windowed else f"of the {sk.n_sweep} sweep lines in its first pass"
-            out += (f"\n  the design scanned {sk.n_sweep - sk.x.size} {of}: on the {sk.x.size} with "
-                    f"|{reg.x_name}| >= {float(np.min(np.abs(sk.x))):.4g} no {reg.y_name} >= {sk.floor:.4g} meets "
-                    f"the constraints (shown exactly on {sk.probe} frequency columns"
-                    + ("" if not sk.unstable else f", or it does only in {sk.unstable} cell"
-                       f"{'s' if sk.unstable > 1 else ''} shown unstable by a spectrum check")
-                    + ")")
+            y, n = reg.y_name, sk.x.size
+            out += (f"\n  the design scanned {sk.n_sweep - n} {of}: on the {n} with |{reg.x_name}| >= "
+                    f"{float(np.min(np.abs(sk.x))):.4g} no ")
+            if not sk.scanned:
+                out += f"{y} >= {sk.floor:.4g} meets the constraints (shown exactly on {sk.probe} frequency columns)"
+            else:
+                found = (f"their admissible {y} there in {sk.unstable} cell{'s' if sk.unstable > 1 else ''} shown "
+                         "unstable by a spectrum check") if sk.unstable else f"no admissible {y} there"
+                out += (f"stable {y} >= {sk.floor:.4g} meets the constraints ({n - sk.scanned} shown to have no "
+                        f"admissible {y} there on {sk.probe} exact frequency columns; {sk.scanned} scanned exactly "
+                        f"on an extended grid: {found})")
         return out
 
     def __repr__(self) -> str:
