@@ -324,12 +324,12 @@ def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) 
 
     The probe: the grid's columns (about :data:`_ABOVE_GRID_COLUMNS` evenly spaced ones on a larger grid),
     :data:`_ABOVE_TOP_COLUMNS` frequencies evenly spaced from the grid's end up to ``top`` [rad/s] (exact
-    values), and the limit columns.  Each column's
-    forbidden intervals are exact (every constraint fails there, at that frequency), whatever the gains:
-    the grid need not be valid for ``xs``.  So a line shown here has no admissible gain at or above
-    ``floor``; a line not shown may still have none (the probe is a sample).  Issue #15: with a lumped
-    shaper in the loop, the sweep's lines at large ``|kx|`` need a grid up to the delay ceiling; where they
-    are shown to hold nothing above the best point of the inner lines, the design does without them.
+    values), and the limit columns.  Each column's forbidden intervals are exact (every constraint fails
+    there, at that frequency), whatever the gains: the grid need not be valid for ``xs``.  So a line shown
+    here has no admissible gain at or above ``floor``; a line not shown may still have none (the probe is a
+    sample).  Issue #15: with a lumped shaper in the loop, the sweep's lines at large ``|kx|`` need a grid up
+    to the delay ceiling; where they are shown to hold nothing above the best point of the inner lines, the
+    design does without them.
     """
     cols = problem.columns
     key = ("probe above", float(top))
