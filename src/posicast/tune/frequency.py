@@ -585,8 +585,7 @@ class FrequencyData:
         for i, c in enumerate(self.constraints):
             for k in ("nu", "na", "nb"):
                 out[f"{k}{i}"] = np.concatenate([self._vals[f"{k}{i}"], self._limit[f"{k}{i}"]])
-            W = np.concatenate([self._vals[f"W{i}"], self._limit[f"W{i}"]])
-            out[f"w2{i}"] = np.abs(W) ** 2 / c.gamma**2
+            out[f"w2{i}"] = _weight_squared(np.concatenate([self._vals[f"W{i}"], self._limit[f"W{i}"]]), c)
         return out
 
     @property
@@ -637,6 +636,11 @@ class Columns:
     @property
     def n_constraints(self) -> int:
         return len(self.constraints)
+
+
+def _weight_squared(W: np.ndarray, c: Constraint) -> np.ndarray:
+    """A constraint's column ``w2 = |W|^2 / gamma^2`` (``|W X| < gamma`` as ``w2 |X|^2 < 1``)."""
+    return np.abs(W) ** 2 / c.gamma**2
 
 
 def columns_of(fd: FrequencyData) -> Columns:
@@ -719,7 +723,7 @@ def with_frequencies(cols: Columns, w: np.ndarray) -> Columns:
         return np.concatenate([old[:n], new, old[n:]])
 
     cons = tuple(ConstraintColumns(join(c.nu, v[f"nu{i}"]), join(c.na, v[f"na{i}"]), join(c.nb, v[f"nb{i}"]),
-                                   join(c.w2, np.abs(v[f"W{i}"]) ** 2 / con.gamma**2))
+                                   join(c.w2, _weight_squared(v[f"W{i}"], con)))
                  for i, (c, con) in enumerate(zip(cols.constraints, cols.data.constraints)))
     return Columns(cols.data, np.concatenate([cols.omega[:n], w]), n + w.size, join(cols.u, v["u"]),
                    join(cols.a, v["a"]), join(cols.b, v["b"]), cons)
