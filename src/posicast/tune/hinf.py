@@ -18,6 +18,7 @@ from typing import NamedTuple, Sequence, Union
 
 import numpy as np
 
+from ._kernels import kernel
 from .frequency import Columns
 
 __all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
@@ -236,14 +237,12 @@ def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray, dU: np
     prev[:, 1:] = V[:, :-1]
     if n > cols.n_grid:
         prev[:, cols.n_grid] = False
-    if "db" not in cols.cache:
-        cols.cache["db"] = np.abs(np.diff(cols.b))
     with np.errstate(invalid="ignore"):
         y = np.where(np.isfinite(L), L, H)
         np.abs(y, out=y)
         y[~np.isfinite(y)] = _INF
         change = np.maximum(y[:, 1:], y[:, :-1])
-        change *= cols.cache["db"][None, :]
+        change *= _db(cols)[None, :]
         np.add(dU, change, out=change)
     prev[:, 1:] &= change <= 0.25 * cols.data.r_min
     where = np.flatnonzero(V.ravel())
@@ -260,6 +259,20 @@ def _run_hull(cols: Columns, L: np.ndarray, H: np.ndarray, V: np.ndarray, dU: np
     amin = np.minimum.reduceat(np.where(Lv == lo[seg], Cv, n), starts)
     amax = np.minimum.reduceat(np.where(Hv == hi[seg], Cv, n), starts)
     return _Runs(where[starts] // n, Cv[starts], lo, hi, amin, amax)
+
+
+def _b_parts(cols: Columns) -> tuple[np.ndarray, np.ndarray]:
+    """``Re b, Im b`` as contiguous arrays, made once per columns."""
+    if "b parts" not in cols.cache:
+        cols.cache["b parts"] = (np.ascontiguousarray(cols.b.real), np.ascontiguousarray(cols.b.imag))
+    return cols.cache["b parts"]
+
+
+def _db(cols: Columns) -> np.ndarray:
+    """``|b|``'s change between neighbouring columns, ``|diff(b)|``, made once per columns."""
+    if "db" not in cols.cache:
+        cols.cache["db"] = np.abs(np.diff(cols.b))
+    return cols.cache["db"]
 
 
 def _parts(cols: Columns) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -316,22 +329,36 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
     offset = 0
     ncol = cols.u.size
     colidx = np.broadcast_to(np.arange(ncol), (m, ncol))
-    # 1 + L without ky, in real and imaginary parts (the same numbers as u + x a in complex arithmetic)
     ur, ui, ar, ai = _parts(cols)
-    Ur = np.multiply(x[:, None], ar[None, :])
-    np.add(ur[None, :], Ur, out=Ur)
-    Ui = np.multiply(x[:, None], ai[None, :])
-    np.add(ui[None, :], Ui, out=Ui)
+    compiled = kernel() if hull else None
+    Ur = Ui = dU = None
     U: np.ndarray | None = None
-    dU = None
-    if hull:  # |change of u + x a| between neighbouring columns
-        dU = np.subtract(Ur[:, 1:], Ur[:, :-1])
-        dUi = np.subtract(Ui[:, 1:], Ui[:, :-1])
-        np.hypot(dU, dUi, out=dU)
-        del dUi
     for ci in which:
         nu, na, nb, w2 = cols.constraints[ci]
         fixed = _fixed_numerator(cols, ci)
+        if fixed is not None and compiled is not None:  # the pieces and their runs' hull in one compiled pass
+            *hull_runs, lrow, lpos, llo, lhi, lcol, nz = compiled(
+                x, ur, ui, ar, ai, *_b_parts(cols), fixed[0], fixed[1], _db(cols), 0.25 * cols.data.r_min,
+                cols.n_grid)
+            first, offset = offset, offset + ncol
+            if hull_runs[0].size:
+                runs.append((_Runs(*hull_runs), first, ci, int(Root.SMALLER), int(Root.LARGER)))
+            if nz:  # the linear case's entries, on the columns where A = 0 (as _fixed_numerator_pieces gives them)
+                first, offset = offset, offset + nz
+                if lrow.size:
+                    runs.append((_Runs(lrow, lpos, llo, lhi, lcol, lcol), first, ci, int(Root.LINEAR),
+                                 int(Root.LINEAR)))
+            continue
+        if Ur is None:  # 1 + L without ky, in real and imaginary parts (the same numbers as u + x a in complex)
+            Ur = np.multiply(x[:, None], ar[None, :])
+            np.add(ur[None, :], Ur, out=Ur)
+            Ui = np.multiply(x[:, None], ai[None, :])
+            np.add(ui[None, :], Ui, out=Ui)
+            if hull:  # |change of u + x a| between neighbouring columns
+                dU = np.subtract(Ur[:, 1:], Ur[:, :-1])
+                dUi = np.subtract(Ui[:, 1:], Ui[:, :-1])
+                np.hypot(dU, dUi, out=dU)
+                del dUi
         if fixed is not None:  # ||S||inf-like: N = nu, A = |b|^2 >= 0 at every column
             pieces: list[tuple[ForbiddenPiece, np.ndarray | None]] = _fixed_numerator_pieces(Ur, Ui, cols.b, *fixed)
         else:
@@ -431,15 +458,28 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
                                                             None)]
     z = np.flatnonzero(A == 0)
     if z.size:  # the linear case, on those columns only: 2 B ky + D <= 0
-        Bz, Dz = B[:, z], D[:, z]
-        ok = np.isfinite(Ur[:, z]) & np.isfinite(Ui[:, z]) & np.isfinite(Dz) & np.isfinite(Bz)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            root = -Dz / (2.0 * Bz)
-        zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
-        lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
-        hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
-        out.append((ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), z))
+        out.append((_linear_piece(Ur[:, z], Ui[:, z], b[z], c[z], Bz=B[:, z], Dz=D[:, z])[0], z))
     return out
+
+
+def _linear_piece(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, c: np.ndarray, Bz: np.ndarray | None = None,
+                  Dz: np.ndarray | None = None) -> tuple[ForbiddenPiece, np.ndarray | None]:
+    """The piece of a fixed-numerator constraint on columns where ``A = 0`` (given alone): ``2 B ky + D <= 0``,
+    a ray (or everything, or nothing); ``B`` and ``D`` computed here unless given."""
+    if Bz is None or Dz is None:
+        br, bi = np.ascontiguousarray(b.real)[None, :], np.ascontiguousarray(b.imag)[None, :]
+        Bz = np.multiply(Ur, br)
+        Bz += np.multiply(Ui, bi)
+        Dz = np.multiply(Ur, Ur)
+        Dz += np.multiply(Ui, Ui)
+        Dz -= c[None, :]
+    ok = np.isfinite(Ur) & np.isfinite(Ui) & np.isfinite(Dz) & np.isfinite(Bz)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        root = -Dz / (2.0 * Bz)
+    zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
+    lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
+    hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
+    return ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), None
 
 
 def line_forbidden(cols: Columns, x: float) -> Forbidden:

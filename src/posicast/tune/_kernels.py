@@ -1,0 +1,157 @@
+"""Compiled kernel of the H-infinity scan (issue #15): the forbidden intervals of an ``||S||``-like bound over
+every (line, column), and the hull of their frequency runs, in one pass without temporaries.
+
+:func:`fixed_numerator_runs` computes, number for number, what :func:`~posicast.tune.hinf._fixed_numerator_pieces`
+and :func:`~posicast.tune.hinf._run_hull` compute with numpy (the same operations in the same order; no
+fused multiply-add: numba keeps IEEE arithmetic unless asked for fast-math), on arrays that never leave the
+cache.  With a lumped shaper's tens of thousands of columns those two were 40-60 % of a design's scan.
+
+numba is imported on the first call (:func:`kernel`), not with posicast; where it cannot be imported, the numpy
+path is used and gives the same numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["kernel", "fixed_numerator_runs"]
+
+_KERNEL: list[Any] = []  # [compiled function] once tried; [None] when numba is missing
+
+
+def kernel() -> Callable[..., Any] | None:
+    """The compiled :func:`fixed_numerator_runs`, or None where numba cannot be imported."""
+    if not _KERNEL:
+        try:
+            import numba
+        except ImportError:  # pragma: no cover - numba is a dependency; the numpy path stays correct
+            _KERNEL.append(None)
+        else:
+            _KERNEL.append(numba.njit(cache=True, error_model="numpy", nogil=True)(fixed_numerator_runs))
+    return _KERNEL[0]
+
+
+def fixed_numerator_runs(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.ndarray, ai: np.ndarray,
+                         br: np.ndarray, bi: np.ndarray, A: np.ndarray, c: np.ndarray, db: np.ndarray,
+                         limit: float, n_grid: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                             np.ndarray, np.ndarray]:
+    """The runs of the ``A > 0`` piece of a fixed-numerator constraint on the lines ``x``: ``(row, first column,
+    lo, hi, column of lo, column of hi)``, one entry per run, row-major (see ``_run_hull``); then the entries
+    of the ``A = 0`` piece (the linear case, each column alone: ``(row, its place among the A = 0 columns, lo,
+    hi, column)``, those with ``lo < inf``, row-major) and the number of those columns.
+
+    ``U = u + x a`` in parts ``ur, ui, ar, ai``; ``b`` in parts ``br, bi``; ``A = |b|^2`` and ``c = w2 |nu|^2``
+    per column; ``db = |diff(b)|``; two neighbouring columns join where ``|dU| + max|y| |db| <= limit``
+    (``limit`` a quarter of the constraint radius), never across column ``n_grid`` (the limit columns)."""
+    m = x.size
+    n = ur.size
+    cap = m * n  # at most one run per entry (np.empty reserves; only the pages written are touched)
+    row = np.empty(cap, np.int64)
+    first = np.empty(cap, np.int64)
+    lo = np.empty(cap, np.float64)
+    hi = np.empty(cap, np.float64)
+    clo = np.empty(cap, np.int64)
+    chi = np.empty(cap, np.int64)
+    nz = 0
+    for j in range(n):
+        if A[j] == 0.0:
+            nz += 1
+    lrow = np.empty(m * nz, np.int64)
+    lpos = np.empty(m * nz, np.int64)
+    llo = np.empty(m * nz, np.float64)
+    lhi = np.empty(m * nz, np.float64)
+    lcol = np.empty(m * nz, np.int64)
+    kl = 0
+    k = -1
+    for i in range(m):
+        xi = x[i]
+        prev_valid = False
+        prev_ur = 0.0
+        prev_ui = 0.0
+        prev_y = 0.0
+        p = 0
+        for j in range(n):
+            Ur = ur[j] + xi * ar[j]
+            Ui = ui[j] + xi * ai[j]
+            B = Ur * br[j] + Ui * bi[j]
+            D = Ur * Ur + Ui * Ui
+            D = D - c[j]
+            Aj = A[j]
+            if Aj == 0.0:  # the linear case: 2 B ky + D <= 0, an entry of its own where it forbids anything
+                if abs(Ur) < math.inf and abs(Ui) < math.inf and abs(D) < math.inf and abs(B) < math.inf:
+                    root = -D / (2.0 * B)
+                    if B > 0.0:
+                        llo[kl] = -math.inf
+                        lhi[kl] = root
+                    elif B < 0.0:
+                        llo[kl] = root
+                        lhi[kl] = math.inf
+                    elif D <= 0.0:
+                        llo[kl] = -math.inf
+                        lhi[kl] = math.inf
+                    else:
+                        llo[kl] = math.inf
+                    if llo[kl] < math.inf:
+                        lrow[kl] = i
+                        lpos[kl] = p
+                        lcol[kl] = j
+                        kl += 1
+                p += 1
+            disc = B * B - Aj * D
+            s = disc if (disc >= 0.0 or disc != disc) else 0.0
+            s = math.sqrt(s)
+            q = (s if B < 0.0 else -s) - B
+            r1 = 0.0 if q == 0.0 else D / q
+            r2 = q / Aj
+            pos = (abs(D) < math.inf) and (abs(B) < math.inf) and Aj > 0.0 and disc > 0.0
+            # numpy's fmin / fmax: a NaN loses
+            if r1 != r1:
+                lo_j = r2
+                hi_j = r2
+            elif r2 != r2:
+                lo_j = r1
+                hi_j = r1
+            else:
+                lo_j = r1 if r1 <= r2 else r2
+                hi_j = r1 if r1 >= r2 else r2
+            y = 0.0
+            if pos:
+                y = lo_j if abs(lo_j) < math.inf else hi_j
+                y = abs(y)
+                if not abs(y) < math.inf:
+                    y = math.inf
+            joined = False
+            if pos and prev_valid and j != n_grid and j > 0:
+                dU = math.hypot(Ur - prev_ur, Ui - prev_ui)
+                yy = y if y >= prev_y else prev_y
+                if y != y or prev_y != prev_y:
+                    yy = math.nan
+                change = dU + yy * db[j - 1]
+                joined = change <= limit
+            if pos:
+                if joined:
+                    if lo_j < lo[k]:
+                        lo[k] = lo_j
+                        clo[k] = j
+                    if hi_j > hi[k]:
+                        hi[k] = hi_j
+                        chi[k] = j
+                else:
+                    k += 1
+                    row[k] = i
+                    first[k] = j
+                    lo[k] = lo_j
+                    hi[k] = hi_j
+                    clo[k] = j
+                    chi[k] = j
+            prev_valid = pos
+            prev_ur = Ur
+            prev_ui = Ui
+            prev_y = y
+    k += 1
+    return (row[:k].copy(), first[:k].copy(), lo[:k].copy(), hi[:k].copy(), clo[:k].copy(), chi[:k].copy(),
+            lrow[:kl].copy(), lpos[:kl].copy(), llo[:kl].copy(), lhi[:kl].copy(), lcol[:kl].copy(), nz)
+
