@@ -21,7 +21,7 @@ CRANE = ALL["gantry_crane"]
 
 
 def _numpy_path(monkeypatch):
-    monkeypatch.setattr(hinf, "kernel", lambda: None)
+    monkeypatch.setattr(hinf, "kernel", lambda name="runs": None)
 
 
 def _same(a: hinf.Forbidden, b: hinf.Forbidden) -> None:
@@ -107,3 +107,56 @@ def test_the_same_inverse_zv_design_with_either_path(monkeypatch):
     assert (fast.kp, fast.kd, fast.ms) == (slow.kp, slow.kd, slow.ms)
     for p, q in zip(fast.region.lines, slow.region.lines):
         assert np.array_equal(p.hinf, q.hinf) and np.array_equal(p.breaks, q.breaks)
+
+
+def test_complement_names_the_first_interval_that_reaches_the_running_maximum():
+    """The gaps' upper-end branches (one vectorised running argmax) against the definition, argmax of the
+    sorted upper ends up to each gap, on intervals with tied ends, infinite ends and padding."""
+    rng = np.random.default_rng(11)
+    m, K = 6, 400
+    lo = np.round(rng.uniform(-400, 400, (m, K)))        # integers: many ties
+    hi = lo + np.round(rng.uniform(0, 3, (m, K)))
+    lo[:, ::97] = -np.inf                                # rays from -inf (finite upper ends)
+    hi[lo > 395] = np.inf                                # and rays to +inf, at the top
+    lo[:, -30:], hi[:, -30:] = np.inf, -np.inf           # padding entries
+    cols = rng.integers(0, 10_000, (m, K))
+    f = hinf.Forbidden(lo, hi, cols, cols + 1, np.zeros((m, K), int), np.zeros((m, K), int), np.ones((m, K), int))
+    out = hinf.complement(f)
+    for i, (iv, ends) in enumerate(out):
+        order = np.argsort(lo[i], kind="stable")
+        li, hs = lo[i][order], hi[i][order]
+        n = int(np.searchsorted(li, np.inf))
+        li, hs, order = li[:n], hs[:n], order[:n]
+        ci = np.maximum.accumulate(hs)
+        expected = []
+        for j in np.flatnonzero(li[1:] > ci[:-1]):
+            k = int(np.argmax(hs[: j + 1]))
+            expected.append(hinf.Branch(int(cols[i, order[k]] + 1), 0, 1) if np.isfinite(hs[k]) else None)
+        got = [e[0] for e, (a, b) in zip(ends, iv) if np.isfinite(a)]
+        assert len(expected) > 5 and got[: len(expected)] == expected
+
+
+def test_meets_window_compiled_is_the_numpy_answer(grids):
+    """The probes' question (is some ky in the window admissible at every column?) on the real grids, on
+    windows from narrow to the whole range, and on columns with NaN, infinite and vanishing entries."""
+    compiled = kernel("meets")
+    rng = np.random.default_rng(9)
+    answers = []
+    for cols, xs in grids:
+        cases = [cols]
+        u, b = cols.u.copy(), cols.b.copy()
+        k = rng.choice(cols.n_grid, size=30, replace=False)
+        u[k[:6]], u[k[6:10]], b[k[10:30]] = np.nan, np.inf, 0.0
+        cases.append(dataclasses.replace(cols, u=u, b=b, cache={}))
+        for c in cases:
+            fixed = hinf._fixed_numerator(c, 0)
+            assert fixed is not None
+            parts = hinf._parts(c) + hinf._b_parts(c)
+            for lo, hi in [(-np.inf, np.inf), (0.0, np.inf), (-2.0, 2.0), (0.0, 1e-3), (5.0, 5.0), (10.0, -10.0)]:
+                with np.errstate(all="ignore"):
+                    ref = hinf.meets(hinf.forbidden(c, xs, [0], hull=False), lo, hi)
+                got = compiled(np.ascontiguousarray(xs), *parts, fixed[0][None, :], fixed[1][None, :], lo, hi)
+                assert np.array_equal(ref, got), (lo, hi)
+                answers.append(got)
+    both = np.concatenate(answers)
+    assert both.any() and not both.all()  # windows with admissible gains and windows without

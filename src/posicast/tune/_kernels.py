@@ -17,21 +17,23 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["kernel", "fixed_numerator_runs"]
+__all__ = ["kernel", "fixed_numerator_runs", "fixed_numerator_meets"]
 
-_KERNEL: list[Any] = []  # [compiled function] once tried; [None] when numba is missing
+_KERNELS: dict[str, Any] = {}  # name -> compiled function, once tried; empty values where numba is missing
 
 
-def kernel() -> Callable[..., Any] | None:
-    """The compiled :func:`fixed_numerator_runs`, or None where numba cannot be imported."""
-    if not _KERNEL:
+def kernel(name: str = "runs") -> Callable[..., Any] | None:
+    """The compiled :func:`fixed_numerator_runs` (``"runs"``) or :func:`fixed_numerator_meets` (``"meets"``),
+    or None where numba cannot be imported."""
+    if not _KERNELS:
         try:
             import numba
         except ImportError:  # pragma: no cover - numba is a dependency; the numpy path stays correct
-            _KERNEL.append(None)
+            _KERNELS.update(runs=None, meets=None)
         else:
-            _KERNEL.append(numba.njit(cache=True, error_model="numpy", nogil=True)(fixed_numerator_runs))
-    return _KERNEL[0]
+            jit = numba.njit(cache=True, error_model="numpy", nogil=True)
+            _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
+    return _KERNELS[name]
 
 
 def fixed_numerator_runs(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.ndarray, ai: np.ndarray,
@@ -155,3 +157,71 @@ def fixed_numerator_runs(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.n
     return (row[:k].copy(), first[:k].copy(), lo[:k].copy(), hi[:k].copy(), clo[:k].copy(), chi[:k].copy(),
             lrow[:kl].copy(), lpos[:kl].copy(), llo[:kl].copy(), lhi[:kl].copy(), lcol[:kl].copy(), nz)
 
+
+
+def fixed_numerator_meets(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.ndarray, ai: np.ndarray,
+                          br: np.ndarray, bi: np.ndarray, A: np.ndarray, c: np.ndarray, y_lo: float,
+                          y_hi: float) -> np.ndarray:
+    """Per line ``x``: does a gap of the union of the forbidden intervals of fixed-numerator constraints (rows of
+    ``A``, ``c``), one per column each, meet the open interval ``(y_lo, y_hi)``?  What
+    :func:`~posicast.tune.hinf.meets` says of :func:`~posicast.tune.hinf.forbidden` without the hull, from the
+    intervals that reach into ``(y_lo, y_hi)`` only (sorted, not all of them)."""
+    m = x.size
+    n = ur.size
+    out = np.zeros(m, np.bool_)
+    lo = np.empty(n * A.shape[0], np.float64)
+    hi = np.empty(n * A.shape[0], np.float64)
+    for i in range(m):
+        xi = x[i]
+        cnt = 0
+        for ci in range(A.shape[0]):
+            for j in range(n):
+                Ur = ur[j] + xi * ar[j]
+                Ui = ui[j] + xi * ai[j]
+                B = Ur * br[j] + Ui * bi[j]
+                D = Ur * Ur + Ui * Ui
+                D = D - c[ci, j]
+                Aj = A[ci, j]
+                if Aj == 0.0:  # the linear case
+                    if not (abs(Ur) < math.inf and abs(Ui) < math.inf and abs(D) < math.inf and abs(B) < math.inf):
+                        continue
+                    root = -D / (2.0 * B)
+                    if B > 0.0:
+                        a, b = -math.inf, root
+                    elif B < 0.0:
+                        a, b = root, math.inf
+                    elif D <= 0.0:
+                        a, b = -math.inf, math.inf
+                    else:
+                        continue
+                else:
+                    disc = B * B - Aj * D
+                    if not ((abs(D) < math.inf) and (abs(B) < math.inf) and Aj > 0.0 and disc > 0.0):
+                        continue
+                    s = math.sqrt(disc)
+                    q = (s if B < 0.0 else -s) - B
+                    r1 = 0.0 if q == 0.0 else D / q
+                    r2 = q / Aj
+                    if r1 != r1:
+                        a, b = r2, r2
+                    elif r2 != r2:
+                        a, b = r1, r1
+                    else:
+                        a = r1 if r1 <= r2 else r2
+                        b = r1 if r1 >= r2 else r2
+                if a < math.inf and b > y_lo and a < y_hi:  # the entries that reach into (y_lo, y_hi)
+                    lo[cnt] = a
+                    hi[cnt] = b
+                    cnt += 1
+        order = np.argsort(lo[:cnt], kind="mergesort")
+        covered = y_lo
+        gap = False
+        for t in range(cnt):
+            e = order[t]
+            if lo[e] > covered:
+                gap = True
+                break
+            if hi[e] > covered:
+                covered = hi[e]
+        out[i] = gap or covered < y_hi
+    return out

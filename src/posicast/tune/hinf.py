@@ -22,7 +22,7 @@ from ._kernels import kernel
 from .frequency import Columns
 
 __all__ = ["Root", "Branch", "Cut", "IntervalEnd", "Ends", "ForbiddenPiece", "Forbidden", "forbidden_interval",
-           "quadratic_root", "quadratic_root_of", "forbidden", "complement", "line_forbidden"]
+           "quadratic_root", "quadratic_root_of", "forbidden", "complement", "line_forbidden", "meets_window"]
 
 _INF = math.inf
 
@@ -531,6 +531,19 @@ def meets(f: Forbidden, lo: float, hi: float) -> np.ndarray:
     return np.any(np.maximum(starts, lo) < np.minimum(ends, hi), axis=1)
 
 
+def meets_window(cols: Columns, x: np.ndarray, which: Sequence[int], lo: float, hi: float) -> np.ndarray:
+    """``meets(forbidden(cols, x, which, hull=False), lo, hi)``: per line, is some ``ky`` in ``(lo, hi)`` admissible
+    at every column?  Compiled (:func:`~posicast.tune._kernels.fixed_numerator_meets`) where every constraint
+    of ``which`` has a fixed numerator: the same answer, from the intervals that reach into the window."""
+    compiled = kernel("meets")
+    fixed = [_fixed_numerator(cols, ci) for ci in which]
+    if compiled is None or not fixed or any(f is None for f in fixed):
+        return meets(forbidden(cols, x, which, hull=False), lo, hi)
+    A = np.stack([f[0] for f in fixed])
+    c = np.stack([f[1] for f in fixed])
+    return compiled(np.ascontiguousarray(x, dtype=float), *_parts(cols), *_b_parts(cols), A, c, float(lo), float(hi))
+
+
 def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: np.ndarray,
                      hi_: np.ndarray) -> tuple[np.ndarray, Ends]:
     """The gaps of one line's sorted forbidden intervals (``li`` sorted lower ends, ``ci`` the running
@@ -539,9 +552,18 @@ def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: n
     if nvalid == 0:
         return np.array([[-_INF, _INF]]), [(None, None)]
     li, ci, oi, hi_ = li[:nvalid], ci[:nvalid], oi[:nvalid], hi_[:nvalid]
+    gaps = np.flatnonzero(li[1:] > ci[:-1])
+    # where the running maximum first takes its value: argmax(hi_[:j + 1]) for every j at once (a line of a
+    # lumped shaper's loop has thousands of entries: one argmax per gap was a tenth of pass 2 on the crane)
+    first_max = None
+    if (gaps.size or ci[-1] < _INF) and not np.isnan(hi_).any():
+        rising = np.empty(nvalid, dtype=bool)
+        rising[0] = True
+        np.greater(hi_[1:], ci[:-1], out=rising[1:])
+        first_max = np.maximum.accumulate(np.where(rising, np.arange(nvalid), 0))
 
     def attr_hi(j: int) -> Branch | None:  # the interval whose hi is the running max at j
-        k = int(np.argmax(hi_[: j + 1]))
+        k = int(np.argmax(hi_[: j + 1])) if first_max is None else int(first_max[j])
         kk = oi[k]
         return Branch(int(f.col_hi[i, kk]), int(f.constraint[i, kk]), int(f.upper_root[i, kk])) \
             if math.isfinite(hi_[k]) else None
@@ -556,7 +578,6 @@ def _line_complement(f: Forbidden, i: int, li: np.ndarray, ci: np.ndarray, oi: n
     if li[0] > -_INF:
         iv.append((-_INF, li[0]))
         ends.append((None, attr_lo(0)))
-    gaps = np.flatnonzero(li[1:] > ci[:-1])
     for j in gaps:
         iv.append((ci[j], li[j + 1]))
         ends.append((attr_hi(int(j)), attr_lo(int(j) + 1)))

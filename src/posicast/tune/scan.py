@@ -34,7 +34,7 @@ from .boundaries import (BreakKind, ComplexBreaks, ComplexCurve, InfiniteBoundar
 from .cells import StabilityLedger
 from .frequency import (Asymptote, Columns, FrequencyData, columns_of, grid_subset, thin_columns, thinnable,
                         with_frequencies)
-from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, meets
+from .hinf import Branch, Cut, Ends, IntervalEnd, complement, forbidden, meets_window
 from .refine import forbidden_window, polish_ends
 
 __all__ = ["Problem", "LineData", "make_problem", "regrid", "scan_lines", "forbidden_above", "intersect", "subtract"]
@@ -320,7 +320,7 @@ def _forbidden_on_probe(problem: Problem, xs: np.ndarray) -> np.ndarray:
     """
     y_lo = max(-problem.y_valid, problem.y_window[0])
     y_hi = min(problem.y_valid, problem.y_window[1])
-    return ~meets(forbidden(_probe(problem.columns), xs, [0], hull=False), y_lo, y_hi)
+    return ~meets_window(_probe(problem.columns), xs, [0], y_lo, y_hi)
 
 
 def _probe(cols: Columns) -> Columns:
@@ -352,7 +352,7 @@ def forbidden_above(problem: Problem, xs: np.ndarray, floor: float, top: float) 
             probe = with_frequencies(probe, np.linspace(end, top, _ABOVE_TOP_COLUMNS + 1)[1:])
         cols.cache[key] = probe
     probe = cols.cache[key]
-    shown = ~meets(forbidden(probe, xs, range(cols.n_constraints), hull=False), floor, problem.y_window[1])
+    shown = ~meets_window(probe, xs, range(cols.n_constraints), floor, problem.y_window[1])
     return shown, int(probe.u.size)
 
 
