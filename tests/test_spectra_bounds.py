@@ -92,3 +92,23 @@ def test_factored_bound_refuses_what_has_no_bound():
     assert factored_bound(QuasiPolynomial([[3.0]])) == 0.0
     # a polynomial: the bound is its largest root modulus (to the 400 steps' 5 %)
     assert 3.0 <= factored_bound(QuasiPolynomial.from_poly([1.0, 0.0, -9.0])) <= 3.0 * 1.05
+
+
+def test_stability_lists_the_same_roots_inside_the_factored_bound(monkeypatch):
+    """`stability` closes its staircase at the factored bound too: the inverse ZV loop's unstable pair at
+    (Kd, Kp) = (689, 1684) and the random cases' unstable roots are those found with the old bound alone."""
+    crane = ALL["gantry_crane"]
+    loop = Loop("inverse_shaper", G=crane.G, C=([688.754, 1683.87], [1.0]), F=crane.F, S=design("zv", crane.mode))
+    rng = np.random.default_rng(7)
+    cases = [loop.characteristic]
+    for _ in range(4):
+        zs = [complex(rng.uniform(0.1, 3.0), rng.uniform(5.0, 40.0))]
+        m = np.real(np.poly(zs + [zs[0].conjugate()] + list(-rng.uniform(0.5, 20.0, 3))))[::-1]
+        cases.append(QuasiPolynomial([m, rng.uniform(0.2, 0.8) * m + np.r_[rng.normal(size=3), 0, 0, 0]],
+                                     [0.0, float(rng.uniform(0.1, 1.0))]))
+    new = [posicast.spectra.stability(h, ignore=loop.cancelled if k == 0 else None) for k, h in enumerate(cases)]
+    monkeypatch.setattr(verdict, "with_factored", lambda q, bound: bound)
+    old = [posicast.spectra.stability(h, ignore=loop.cancelled if k == 0 else None) for k, h in enumerate(cases)]
+    for a, b in zip(new, old):
+        assert a.stable == b.stable and a.unstable_roots.size == b.unstable_roots.size >= 2
+        np.testing.assert_allclose(a.unstable_roots, b.unstable_roots, rtol=1e-12)

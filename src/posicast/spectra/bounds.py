@@ -20,7 +20,7 @@ from ..core.quasipoly import QuasiPolynomial
 from .checks import prepared
 from .difference import DifferenceSpectrum, min_modulus
 
-__all__ = ["leading", "root_bound", "bound_from_gamma", "sharp_bound", "factored_bound"]
+__all__ = ["leading", "root_bound", "bound_from_gamma", "sharp_bound", "factored_bound", "with_factored"]
 
 _U = float(np.finfo(float).eps) / 2.0  # unit roundoff
 
@@ -198,3 +198,20 @@ def sharp_bound(q: QuasiPolynomial, ds: DifferenceSpectrum | None) -> Callable[[
         return bound_from_gamma(q, alpha, c0 * min_modulus(ds.operator, alpha))
 
     return bound
+
+
+def with_factored(q: QuasiPolynomial, bound: Callable[[float], float]) -> Callable[[float], float]:
+    """``alpha -> R(alpha)`` of ``bound``, and for ``alpha >= 0`` no more than :func:`factored_bound` (valid on
+    ``Re s >= 0``, so on every half-plane inside it; computed once, on the first such call)."""
+    memo: list[float] = []
+
+    def both(alpha: float) -> float:
+        R = bound(alpha)
+        if alpha < 0 or not math.isfinite(R):
+            return R
+        if not memo:
+            memo.append(factored_bound(q, cap=R))
+        return min(R, memo[0])
+
+    return both
+

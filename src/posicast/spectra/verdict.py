@@ -26,7 +26,7 @@ import numpy as np
 from ..core.quasipoly import QuasiPolynomial
 from .abscissa import SpectralAbscissa, rightmost, spectral_abscissa
 from .argument_principle import OnBoundary, winding
-from .bounds import factored_bound, root_bound, sharp_bound
+from .bounds import factored_bound, root_bound, sharp_bound, with_factored
 from .checks import BudgetExceeded, RootFindingError, check_budget, check_ignore, prepared
 from .difference import DifferenceSpectrum, difference_spectrum
 from .evaluation import Evaluator
@@ -168,7 +168,7 @@ def stability(h: Any, *, ignore: Any = None, max_evaluations: float = 5e7, timeo
         ds = difference_spectrum(q)
         if not ds.strongly_stable:
             return _not_strongly_stable(q, ds, ignore, max_evaluations, timeout)
-    got = search_right_of(q, 0.0, ignore, budget, bound=sharp_bound(q, ds), edge_tol=1e-9)
+    got = search_right_of(q, 0.0, ignore, budget, bound=with_factored(q, sharp_bound(q, ds)), edge_tol=1e-9)
     if got is None:  # cannot happen: gamma(0) > 0 for retarded or strongly stable neutral h
         raise RuntimeError("no root bound at Re s = 0; please report this quasi-polynomial")
     return _verdict(kind, ds, _split_axis(q, got))
