@@ -160,3 +160,32 @@ def test_meets_window_compiled_is_the_numpy_answer(grids):
                 answers.append(got)
     both = np.concatenate(answers)
     assert both.any() and not both.all()  # windows with admissible gains and windows without
+
+
+def test_kernels_compile_without_a_writable_cache(monkeypatch):
+    """Where numba finds no place to cache (a read-only install without a user cache directory), it raises
+    RuntimeError at decoration; the kernels are then compiled in the process, with the same numbers."""
+    import numba
+
+    import posicast.tune._kernels as K
+
+    real, cached = numba.njit, K.kernel("runs")
+
+    def no_cache(*args, **kwargs):
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function: no locator available")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(numba, "njit", no_cache)
+    monkeypatch.setattr(K, "_KERNELS", {})
+    runs = K.kernel("runs")
+    assert runs is not None and K.kernel("meets") is not None
+    x = np.array([0.5, -1.0])
+    w = np.linspace(0.0, 3.0, 50)
+    args = (x, np.cos(w), np.sin(w), w, -w, np.cos(2 * w), np.sin(2 * w), np.ones(50), np.full(50, 0.1),
+            np.abs(np.diff(np.exp(2j * w))), 0.2, 45)
+    assert runs is not cached
+    out = runs(*args)
+    assert out[0].size > 0
+    for p, q in zip(out, cached(*args)):
+        assert np.array_equal(p, q)

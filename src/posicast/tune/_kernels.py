@@ -33,8 +33,12 @@ def kernel(name: str = "runs") -> Callable[..., Any] | None:
         except ImportError:  # pragma: no cover - numba is a dependency; the numpy path stays correct
             _KERNELS.update(runs=None, meets=None)
         else:
-            jit = numba.njit(cache=True, error_model="numpy", nogil=True)
-            _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
+            try:  # cached next to this module (or in the user's cache directory)
+                jit = numba.njit(cache=True, error_model="numpy", nogil=True)
+                _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
+            except RuntimeError:  # no writable cache location: compiled in each process instead
+                jit = numba.njit(error_model="numpy", nogil=True)
+                _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
     return _KERNELS[name]
 
 

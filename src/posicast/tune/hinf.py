@@ -338,7 +338,7 @@ def forbidden(cols: Columns, x: np.ndarray, which: Sequence[int], hull: bool = T
         fixed = _fixed_numerator(cols, ci)
         if fixed is not None and compiled is not None:  # the pieces and their runs' hull in one compiled pass
             *hull_runs, lrow, lpos, llo, lhi, lcol, nz = compiled(
-                x, ur, ui, ar, ai, *_b_parts(cols), fixed[0], fixed[1], _db(cols), 0.25 * cols.data.r_min,
+                np.ascontiguousarray(x, dtype=float), ur, ui, ar, ai, *_b_parts(cols), fixed[0], fixed[1], _db(cols), 0.25 * cols.data.r_min,
                 cols.n_grid)
             first, offset = offset, offset + ncol
             if hull_runs[0].size:
@@ -458,28 +458,15 @@ def _fixed_numerator_pieces(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, A: np
                                                             None)]
     z = np.flatnonzero(A == 0)
     if z.size:  # the linear case, on those columns only: 2 B ky + D <= 0
-        out.append((_linear_piece(Ur[:, z], Ui[:, z], b[z], c[z], Bz=B[:, z], Dz=D[:, z])[0], z))
+        Bz, Dz = B[:, z], D[:, z]
+        ok = np.isfinite(Ur[:, z]) & np.isfinite(Ui[:, z]) & np.isfinite(Dz) & np.isfinite(Bz)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            root = -Dz / (2.0 * Bz)
+        zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
+        lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
+        hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
+        out.append((ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), z))
     return out
-
-
-def _linear_piece(Ur: np.ndarray, Ui: np.ndarray, b: np.ndarray, c: np.ndarray, Bz: np.ndarray | None = None,
-                  Dz: np.ndarray | None = None) -> tuple[ForbiddenPiece, np.ndarray | None]:
-    """The piece of a fixed-numerator constraint on columns where ``A = 0`` (given alone): ``2 B ky + D <= 0``,
-    a ray (or everything, or nothing); ``B`` and ``D`` computed here unless given."""
-    if Bz is None or Dz is None:
-        br, bi = np.ascontiguousarray(b.real)[None, :], np.ascontiguousarray(b.imag)[None, :]
-        Bz = np.multiply(Ur, br)
-        Bz += np.multiply(Ui, bi)
-        Dz = np.multiply(Ur, Ur)
-        Dz += np.multiply(Ui, Ui)
-        Dz -= c[None, :]
-    ok = np.isfinite(Ur) & np.isfinite(Ui) & np.isfinite(Dz) & np.isfinite(Bz)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        root = -Dz / (2.0 * Bz)
-    zpos, zneg, zall = ok & (Bz > 0), ok & (Bz < 0), ok & (Bz == 0) & (Dz <= 0)
-    lo4 = np.where(zpos, -_INF, np.where(zneg, root, np.where(zall, -_INF, _INF)))
-    hi4 = np.where(zpos, root, np.where(zneg, _INF, np.where(zall, _INF, -_INF)))
-    return ForbiddenPiece(lo4, hi4, Root.LINEAR, Root.LINEAR, None), None
 
 
 def line_forbidden(cols: Columns, x: float) -> Forbidden:

@@ -264,14 +264,16 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
     if not thinnable(cols):  # every line needs every column: one group (the same numbers, fewer calls)
         decade = np.zeros_like(decade)
     crossings = _crossings(problem, xs)
-    # the columns each decade needs, blocked lines included (the same thinning with or without them)
-    thinned = {d: thin_columns(cols, float(mag[decade == d].max()), y_top) for d in np.unique(decade)}
+    def thinned(d: float) -> tuple[Columns, np.ndarray | None]:
+        """The columns decade ``d`` needs, blocked lines included (the same thinning with or without them)."""
+        return thin_columns(cols, float(mag[decade == d].max()), y_top)
+
     blocked = np.zeros(xs.size, dtype=bool)
     if cols.n_constraints == 1 and thinnable(cols):
         # from the largest gains down, while the probe still finds forbidden lines (small gains rarely are)
         # and costs a fraction of the scan (a narrow window's thinned columns are about as many as its own)
         for d in np.unique(decade)[::-1]:
-            if _PROBE_SHARE * _probe(cols).u.size > thinned[d][0].u.size:
+            if _PROBE_SHARE * _probe(cols).u.size > thinned(d)[0].u.size:
                 break
             group = np.flatnonzero(decade == d)
             blocked[group] = _forbidden_on_probe(problem, xs[group])
@@ -283,7 +285,7 @@ def scan_lines(problem: Problem, xs: np.ndarray) -> list[LineData]:
         group = np.flatnonzero((decade == d) & ~blocked)
         if not group.size:
             continue
-        sub, sel = thinned[d]
+        sub, sel = thinned(d)
         block = max(1, int(2_000_000 // max(1, sub.u.size * max(1, sub.n_constraints))))
         for k in range(0, group.size, block):
             idx = group[k : k + block]
