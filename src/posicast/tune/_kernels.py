@@ -26,20 +26,63 @@ _KERNELS: dict[str, Any] = {}  # name -> compiled function, once tried; empty va
 
 def kernel(name: str = "runs") -> Callable[..., Any] | None:
     """The compiled :func:`fixed_numerator_runs` (``"runs"``) or :func:`fixed_numerator_meets` (``"meets"``),
-    or None where numba cannot be imported."""
+    or None where numba cannot be imported.
+
+    Both call :func:`_column_interval`, compiled first: the module's name for it is rebound to the compiled
+    function, which numba then calls from the kernels (and Python too, with the same numbers)."""
+    global _column_interval
     if not _KERNELS:
         try:
             import numba
         except ImportError:  # pragma: no cover - numba is a dependency; the numpy path stays correct
             _KERNELS.update(runs=None, meets=None)
-        else:
-            try:  # cached next to this module (or in the user's cache directory)
-                jit = numba.njit(cache=True, error_model="numpy", nogil=True)
+            return None
+        python = _COLUMN_INTERVAL
+        for options in ({"cache": True}, {}):  # cached next to this module, or (no writable place) per process
+            try:
+                jit = numba.njit(error_model="numpy", nogil=True, **options)
+                _column_interval = jit(python)
                 _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
-            except RuntimeError:  # no writable cache location: compiled in each process instead
-                jit = numba.njit(error_model="numpy", nogil=True)
-                _KERNELS.update(runs=jit(fixed_numerator_runs), meets=jit(fixed_numerator_meets))
+                break
+            except RuntimeError:
+                _column_interval = python
     return _KERNELS[name]
+
+
+def _column_interval(Ur: float, Ui: float, br: float, bi: float, A: float, c: float) -> tuple[int, float, float]:
+    """What a fixed-numerator constraint forbids at one column and line, ``U = Ur + j Ui``: ``(kind, lo, hi)``,
+    kind 0 nothing, 1 the interval ``[lo, hi]`` where ``A > 0`` (``pos`` of ``_fixed_numerator_pieces``), 2
+    the linear case's entry where ``A = 0`` (a ray, or everything; only where ``lo < inf``, as ``_entries``
+    keeps it).  The same operations in the same order as the numpy path."""
+    B = Ur * br + Ui * bi
+    D = Ur * Ur + Ui * Ui
+    D = D - c
+    if A == 0.0:  # 2 B ky + D <= 0
+        if not (abs(Ur) < math.inf and abs(Ui) < math.inf and abs(D) < math.inf and abs(B) < math.inf):
+            return 0, math.inf, -math.inf
+        root = -D / (2.0 * B)
+        if B > 0.0:
+            return 2, -math.inf, root
+        if B < 0.0:
+            return (2, root, math.inf) if root < math.inf else (0, math.inf, -math.inf)
+        if D <= 0.0:
+            return 2, -math.inf, math.inf
+        return 0, math.inf, -math.inf
+    disc = B * B - A * D
+    if not ((abs(D) < math.inf) and (abs(B) < math.inf) and A > 0.0 and disc > 0.0):
+        return 0, math.inf, -math.inf
+    s = math.sqrt(disc)
+    q = (s if B < 0.0 else -s) - B
+    r1 = 0.0 if q == 0.0 else D / q
+    r2 = q / A
+    if r1 != r1:  # numpy's fmin / fmax: a NaN loses
+        return 1, r2, r2
+    if r2 != r2:
+        return 1, r1, r1
+    return 1, (r1 if r1 <= r2 else r2), (r1 if r1 >= r2 else r2)
+
+
+_COLUMN_INTERVAL = _column_interval  # the Python function, whatever the module's name is bound to
 
 
 def fixed_numerator_runs(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.ndarray, ai: np.ndarray,
@@ -84,47 +127,17 @@ def fixed_numerator_runs(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.n
         for j in range(n):
             Ur = ur[j] + xi * ar[j]
             Ui = ui[j] + xi * ai[j]
-            B = Ur * br[j] + Ui * bi[j]
-            D = Ur * Ur + Ui * Ui
-            D = D - c[j]
-            Aj = A[j]
-            if Aj == 0.0:  # the linear case: 2 B ky + D <= 0, an entry of its own where it forbids anything
-                if abs(Ur) < math.inf and abs(Ui) < math.inf and abs(D) < math.inf and abs(B) < math.inf:
-                    root = -D / (2.0 * B)
-                    if B > 0.0:
-                        llo[kl] = -math.inf
-                        lhi[kl] = root
-                    elif B < 0.0:
-                        llo[kl] = root
-                        lhi[kl] = math.inf
-                    elif D <= 0.0:
-                        llo[kl] = -math.inf
-                        lhi[kl] = math.inf
-                    else:
-                        llo[kl] = math.inf
-                    if llo[kl] < math.inf:
-                        lrow[kl] = i
-                        lpos[kl] = p
-                        lcol[kl] = j
-                        kl += 1
+            kind, lo_j, hi_j = _column_interval(Ur, Ui, br[j], bi[j], A[j], c[j])
+            if A[j] == 0.0:  # the linear case: an entry of its own where it forbids anything
+                if kind == 2:
+                    lrow[kl] = i
+                    lpos[kl] = p
+                    llo[kl] = lo_j
+                    lhi[kl] = hi_j
+                    lcol[kl] = j
+                    kl += 1
                 p += 1
-            disc = B * B - Aj * D
-            s = disc if (disc >= 0.0 or disc != disc) else 0.0
-            s = math.sqrt(s)
-            q = (s if B < 0.0 else -s) - B
-            r1 = 0.0 if q == 0.0 else D / q
-            r2 = q / Aj
-            pos = (abs(D) < math.inf) and (abs(B) < math.inf) and Aj > 0.0 and disc > 0.0
-            # numpy's fmin / fmax: a NaN loses
-            if r1 != r1:
-                lo_j = r2
-                hi_j = r2
-            elif r2 != r2:
-                lo_j = r1
-                hi_j = r1
-            else:
-                lo_j = r1 if r1 <= r2 else r2
-                hi_j = r1 if r1 >= r2 else r2
+            pos = kind == 1
             y = 0.0
             if pos:
                 y = lo_j if abs(lo_j) < math.inf else hi_j
@@ -184,37 +197,9 @@ def fixed_numerator_meets(x: np.ndarray, ur: np.ndarray, ui: np.ndarray, ar: np.
             for j in range(n):
                 Ur = ur[j] + xi * ar[j]
                 Ui = ui[j] + xi * ai[j]
-                B = Ur * br[j] + Ui * bi[j]
-                D = Ur * Ur + Ui * Ui
-                D = D - c[ci, j]
-                Aj = A[ci, j]
-                if Aj == 0.0:  # the linear case
-                    if not (abs(Ur) < math.inf and abs(Ui) < math.inf and abs(D) < math.inf and abs(B) < math.inf):
-                        continue
-                    root = -D / (2.0 * B)
-                    if B > 0.0:
-                        a, b = -math.inf, root
-                    elif B < 0.0:
-                        a, b = root, math.inf
-                    elif D <= 0.0:
-                        a, b = -math.inf, math.inf
-                    else:
-                        continue
-                else:
-                    disc = B * B - Aj * D
-                    if not ((abs(D) < math.inf) and (abs(B) < math.inf) and Aj > 0.0 and disc > 0.0):
-                        continue
-                    s = math.sqrt(disc)
-                    q = (s if B < 0.0 else -s) - B
-                    r1 = 0.0 if q == 0.0 else D / q
-                    r2 = q / Aj
-                    if r1 != r1:
-                        a, b = r2, r2
-                    elif r2 != r2:
-                        a, b = r1, r1
-                    else:
-                        a = r1 if r1 <= r2 else r2
-                        b = r1 if r1 >= r2 else r2
+                kind, a, b = _column_interval(Ur, Ui, br[j], bi[j], A[ci, j], c[ci, j])
+                if kind == 0:
+                    continue
                 if a < math.inf and b > y_lo and a < y_hi:  # the entries that reach into (y_lo, y_hi)
                     lo[cnt] = a
                     hi[cnt] = b
