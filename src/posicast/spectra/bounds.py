@@ -151,10 +151,17 @@ def factored_bound(h: Any, cap: float = math.inf) -> float:
 
     Examples
     --------
+    ``(s + 10)^2 (1 + 0.9 e^{-s}) + 1``: ``m = s^2 + 20 s + 101`` (roots of modulus ``sqrt(101)``),
+    ``r_1 = -0.9``, ``gamma = 0.1``, so the smallest such radius is ``sqrt(101) + 3``; the coefficient bound
+    solves ``0.1 r^2 = 38 r + 191``:
+
     >>> from posicast import QuasiPolynomial
-    >>> h = QuasiPolynomial([[101.0, 20.0, 1.0], [90.0, 18.0, 0.9]], [0, 1])  # (s+10)^2 (1 + 0.9 e^{-s}) + 1
-    >>> round(root_bound(h, 0.0)), round(factored_bound(h), 1)                 # (the smallest such radius: 13)
-    (385, 13.3)
+    >>> h = QuasiPolynomial([[101.0, 20.0, 1.0], [90.0, 18.0, 0.9]], [0, 1])
+    >>> round(root_bound(h, 0.0), 2), round((38 + (38**2 + 4 * 0.1 * 191) ** 0.5) / 0.2, 2)
+    (384.96, 384.96)
+    >>> R = factored_bound(h)
+    >>> bool(101**0.5 + 3 <= R <= 1.05 * (101**0.5 + 3))
+    True
     """
     q = prepared(h)
     n, lead = leading(q)
